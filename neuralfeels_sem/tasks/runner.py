@@ -1,0 +1,60 @@
+"""Validate the composed config, seed, run the task, and turn user errors into one line.
+
+Single runs exit with code 2 on a UserError (no traceback). In a sweep the error is
+written to the job's directory as `error.txt` and the sweep goes on; the aggregate at
+the end counts and reports failed jobs.
+"""
+
+from __future__ import annotations
+
+import logging
+import sys
+from pathlib import Path
+
+from hydra.core.hydra_config import HydraConfig
+from hydra.types import RunMode
+from hydra.utils import get_method
+from omegaconf import DictConfig
+
+from neuralfeels_sem.configs import validate_config
+from neuralfeels_sem.errors import UserError
+from neuralfeels_sem.utils.seed import seed_everything
+
+log = logging.getLogger(__name__)
+
+
+def output_dir() -> Path:
+    """The current run's directory (Hydra's), or the working directory outside Hydra."""
+    try:
+        return Path(HydraConfig.get().runtime.output_dir)
+    except ValueError:
+        return Path.cwd()
+
+
+def _is_multirun() -> bool:
+    try:
+        return HydraConfig.get().mode == RunMode.MULTIRUN
+    except ValueError:
+        return False
+
+
+def run_task(cfg: DictConfig) -> float | None:
+    try:
+        validate_config(cfg)
+        seed_everything(int(cfg.seed))
+        task = get_method(cfg.task._target_)
+        result = task(cfg)
+    except UserError as exc:
+        log.error("%s", exc)
+        if _is_multirun():
+            (output_dir() / "error.txt").write_text(f"{type(exc).__name__}: {exc}\n")
+            return None
+        print(f"error: {exc}", file=sys.stderr)
+        sys.exit(exc.exit_code)
+    except KeyboardInterrupt:
+        log.warning("interrupted; outputs written so far are in %s", output_dir())
+        sys.exit(130)
+    objective = cfg.task.get("objective") if hasattr(cfg.task, "get") else None
+    if objective and isinstance(result, dict) and objective in result:
+        return float(result[objective])
+    return None

@@ -1,0 +1,17 @@
+"""Where the project keeps shipped assets, generated caches and the shared real data."""
+
+from pathlib import Path
+
+PACKAGE_DIR = Path(__file__).resolve().parents[1]
+REPO_DIR = PACKAGE_DIR.parent
+ASSETS_DIR = PACKAGE_DIR / "assets"
+# Generated on first use, never committed (see .gitignore).
+CACHE_DIR = REPO_DIR / "data"
+# Real third-party data beside the project; absent on a user's fresh clone.
+SHARED_DATA_DIR = REPO_DIR.parent / "shared" / "data"
+
+
+def cache_dir(*parts: str) -> Path:
+    path = CACHE_DIR.joinpath(*parts)
+    path.mkdir(parents=True, exist_ok=True)
+    return path

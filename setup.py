@@ -1,0 +1,50 @@
+"""Installable package for SemanticFeels (neuralfeels_sem).
+
+torch is deliberately not a hard requirement here: the Makefile installs the CPU
+build torch==2.13.0 first, and a loose torch requirement would let pip pull a
+multi-GB CUDA build on a fresh machine.
+"""
+
+from setuptools import find_packages, setup
+
+INSTALL_REQUIRES = [
+    "numpy>=1.26,<3",
+    "scipy>=1.11",
+    "hydra-core==1.3.8",
+    "omegaconf>=2.3,<2.4",
+    "hydra-joblib-launcher==1.2.0",
+    "hydra-submitit-launcher==1.2.0",
+    "mujoco>=3.2",
+    "pyrender==0.1.45",
+    "trimesh>=4.4",
+    "rtree>=1.2",
+    "scikit-image>=0.22",
+    "efficientnet-pytorch==0.7.1",
+    "pillow>=10",
+    "matplotlib>=3.8",
+    "tqdm>=4.66",
+    "opencv-contrib-python-headless>=4.9",
+    "python-can>=4.4",
+    "dynamixel-sdk>=3.7",
+    "pyserial>=3.5",
+    "pyrealsense2>=2.55",
+    "pyudev>=0.24",
+]
+
+EXTRAS = {
+    "torch": ["torch==2.13.0"],
+    "dev": ["pytest>=8", "pytest-timeout>=2.3", "ruff>=0.6"],
+    "ray": ["hydra-ray-launcher==1.2.2"],
+}
+
+setup(
+    name="neuralfeels_sem",
+    version="0.1.0",
+    description="SemanticFeels: material mapping with vision and touch during in-hand manipulation",
+    python_requires=">=3.10",
+    packages=find_packages(include=["neuralfeels_sem", "neuralfeels_sem.*"]),
+    include_package_data=True,
+    package_data={"neuralfeels_sem": ["assets/**/*"]},
+    install_requires=INSTALL_REQUIRES,
+    extras_require=EXTRAS,
+)

@@ -1,0 +1,30 @@
+"""A `-m` sweep of two tiny jobs finishes with every job's outputs and the aggregate."""
+
+from __future__ import annotations
+
+import json
+from pathlib import Path
+
+import pytest
+
+from tests.helpers import run_cli
+
+TINY_JOB = ["task=info"]
+
+
+@pytest.mark.parametrize("launcher", ["local", "submitit_local"])
+def test_multirun_two_jobs_and_aggregate(tmp_path: Path, launcher: str) -> None:
+    sweep_dir = tmp_path / "sweep"
+    result = run_cli(["-m", *TINY_JOB, "seed=0,1", f"launcher={launcher}", f"hydra.sweep.dir={sweep_dir}"])
+    assert result.returncode == 0, result.stderr[-3000:]
+    for job in ("0", "1"):
+        assert (sweep_dir / job / "info.json").exists(), sorted(p.name for p in (sweep_dir / job).iterdir())
+        assert (sweep_dir / job / ".hydra" / "config.yaml").exists()
+    summary = json.loads((sweep_dir / "summary.json").read_text())
+    assert [j["status"] for j in summary["jobs"]] == ["ok", "ok"]
+    assert summary["failed"] == []
+    # Both jobs differ only by seed, so they form one group of two trials.
+    assert len(summary["groups"]) == 1
+    assert summary["groups"][0]["metrics"]["cpu_count"]["n"] == 2
+    assert (sweep_dir / "summary.csv").read_text().startswith("metric,mean,std,n")
+    assert (sweep_dir / "summary.png").stat().st_size > 1000
