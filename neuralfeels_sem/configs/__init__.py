@@ -26,6 +26,9 @@ def register_configs() -> None:
     global _registered
     if _registered:
         return
+    # ${len:${materials}} gives the number of classes to model and classifier configs.
+    if not OmegaConf.has_resolver("len"):
+        OmegaConf.register_new_resolver("len", lambda value: len(value))
     cs = ConfigStore.instance()
     for info in pkgutil.iter_modules(__path__):
         module = importlib.import_module(f"{__name__}.{info.name}")
