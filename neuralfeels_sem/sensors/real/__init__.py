@@ -1,0 +1,1 @@
+"""Hardware backends: DIGIT, RealSense, Allegro (CAN), Dynamixel hand, ArUco object pose, RealSensor."""
