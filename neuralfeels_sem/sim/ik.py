@@ -1,0 +1,122 @@
+"""Damped least-squares inverse kinematics for the four DIGIT fingertips (MuJoCo Jacobians).
+
+Each finger has 4 joints but a fingertip target has 5 constraints (gel centre position
+and the pad normal direction), so position is weighted fully and the normal softly
+(`normal_weight` metres per radian): the gel lands on the target point and tilts as
+close to the surface normal as the finger allows. Fingers are independent chains, so
+all four are solved together with one forward-kinematics pass per iteration.
+"""
+
+from __future__ import annotations
+
+from dataclasses import dataclass
+
+import mujoco
+import numpy as np
+
+from neuralfeels_sem.sensors.frame import FINGERS
+
+
+@dataclass
+class FingerTarget:
+    """Where a finger's gel centre should be and which way its pad (sensor +z) should face."""
+
+    gel_position: np.ndarray  # (3,) world
+    pad_direction: np.ndarray  # (3,) world unit vector = desired sensor +z (into the object)
+
+    def __post_init__(self) -> None:
+        self.gel_position = np.asarray(self.gel_position, dtype=np.float64)
+        self.pad_direction = np.asarray(self.pad_direction, dtype=np.float64)
+        if self.gel_position.shape != (3,) or self.pad_direction.shape != (3,):
+            raise ValueError("FingerTarget needs (3,) gel_position and pad_direction")
+        norm = np.linalg.norm(self.pad_direction)
+        if norm < 1e-9:
+            raise ValueError("FingerTarget.pad_direction must be non-zero")
+        self.pad_direction = self.pad_direction / norm
+
+
+class FingertipIK:
+    """Solves joint angles that put each `<finger>_gel` site on its target.
+
+    Works on any model containing the hand of hand_model.py (the hand alone or the full
+    scene); it writes qpos of `data` and runs forward kinematics only.
+    """
+
+    def __init__(
+        self,
+        model: mujoco.MjModel,
+        data: mujoco.MjData,
+        iterations: int = 40,
+        damping: float = 1e-4,
+        normal_weight: float = 0.02,
+        tolerance_m: float = 1e-4,
+    ) -> None:
+        self.model, self.data = model, data
+        self.iterations, self.damping = iterations, damping
+        self.normal_weight, self.tolerance_m = normal_weight, tolerance_m
+        self.site_ids = {
+            f: mujoco.mj_name2id(model, mujoco.mjtObj.mjOBJ_SITE, f"{f}_gel") for f in FINGERS
+        }
+        if min(self.site_ids.values()) < 0:
+            raise ValueError("model has no <finger>_gel sites; build it with sim.hand_model")
+        self.qpos_adr, self.dof_adr, self.limits = {}, {}, {}
+        for f in FINGERS:
+            ids = ids_of(model, f)
+            self.qpos_adr[f] = np.array([model.jnt_qposadr[j] for j in ids])
+            self.dof_adr[f] = np.array([model.jnt_dofadr[j] for j in ids])
+            self.limits[f] = np.array([model.jnt_range[j] for j in ids])
+        self._jacp = np.zeros((3, model.nv))
+        self._jacr = np.zeros((3, model.nv))
+
+    def forward(self) -> None:
+        mujoco.mj_kinematics(self.model, self.data)
+        mujoco.mj_comPos(self.model, self.data)
+
+    def gel_pose(self, finger: str) -> tuple[np.ndarray, np.ndarray]:
+        """Current (gel centre (3,), pad direction (3,)) of a finger in the world."""
+        sid = self.site_ids[finger]
+        return self.data.site_xpos[sid].copy(), self.data.site_xmat[sid].reshape(3, 3)[:, 2].copy()
+
+    def solve(self, targets: dict[str, FingerTarget]) -> dict[str, float]:
+        """Move the targeted fingers from the current qpos; return position error (m) per finger."""
+        for finger in targets:
+            if finger not in self.site_ids:
+                raise ValueError(f"unknown finger {finger!r}; expected one of {FINGERS}")
+        errors = dict.fromkeys(targets, np.inf)
+        active = set(targets)
+        for _ in range(self.iterations):
+            self.forward()
+            for finger in list(active):
+                target = targets[finger]
+                pos, pad = self.gel_pose(finger)
+                err_p = target.gel_position - pos
+                errors[finger] = float(np.linalg.norm(err_p))
+                err_r = np.cross(
+                    pad, target.pad_direction
+                )  # axis * sin(angle) toward the target normal
+                if errors[finger] < self.tolerance_m and np.linalg.norm(err_r) < 0.05:
+                    active.discard(finger)
+                    continue
+                mujoco.mj_jacSite(
+                    self.model, self.data, self._jacp, self._jacr, self.site_ids[finger]
+                )
+                dofs = self.dof_adr[finger]
+                jac = np.vstack([self._jacp[:, dofs], self.normal_weight * self._jacr[:, dofs]])
+                err = np.concatenate([err_p, self.normal_weight * err_r])
+                dq = jac.T @ np.linalg.solve(jac @ jac.T + self.damping * np.eye(6), err)
+                adr = self.qpos_adr[finger]
+                lim = self.limits[finger]
+                self.data.qpos[adr] = np.clip(self.data.qpos[adr] + dq, lim[:, 0], lim[:, 1])
+            if not active:
+                break
+        self.forward()
+        for finger in targets:
+            errors[finger] = float(
+                np.linalg.norm(targets[finger].gel_position - self.gel_pose(finger)[0])
+            )
+        return errors
+
+
+def ids_of(model: mujoco.MjModel, finger: str) -> list[int]:
+    """Joint ids of a finger's four joints, proximal first."""
+    return [mujoco.mj_name2id(model, mujoco.mjtObj.mjOBJ_JOINT, f"{finger}_j{i}") for i in range(4)]
