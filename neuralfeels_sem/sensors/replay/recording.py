@@ -1,0 +1,271 @@
+"""Recording directory: write Frames as they come, read them back bit-exactly.
+
+Layout (schema version 1):
+
+    <dir>/meta.json                 schema_version, class_names, frame_period_s, fingers,
+                                    digit/camera intrinsics, calibration, config, num_frames
+    <dir>/frames.jsonl              one JSON line per frame: index, time_s, per-stream stamps,
+                                    joint_positions, world_T_object, gt_world_T_object,
+                                    per-finger world_T_sensor, world_T_camera, camera name
+    <dir>/tactile/<finger>/<i>.png  RGB tactile image (lossless PNG)
+    <dir>/tactile/<finger>/background.png
+    <dir>/camera/rgb/<i>.png        RGB
+    <dir>/camera/depth/<i>.npz      float32 metres (lossless; key "depth")
+    <dir>/camera/mask/<i>.png       object mask 0/255 (when present)
+    <dir>/gt/tactile/<finger>/<i>.npz  sim ground truth: contact_mask, depth, material
+
+Frames are appended one line at a time and meta.json is rewritten on every flush, so a
+run that stops early still leaves a readable recording. Poses are JSON floats (exact for
+float64). Images are PNG (lossless); depth is npz float32, so a replay is identical.
+"""
+
+from __future__ import annotations
+
+import json
+from collections.abc import Iterator, Sequence
+from pathlib import Path
+
+import cv2
+import numpy as np
+
+from neuralfeels_sem.errors import DataError
+from neuralfeels_sem.sensors.frame import CameraReading, Frame, TactileReading
+from neuralfeels_sem.utils.geometry import Intrinsics
+
+SCHEMA_VERSION = 1
+
+
+def _name(index: int) -> str:
+    return f"{index:06d}"
+
+
+def _pose(value: np.ndarray | None) -> list | None:
+    return None if value is None else np.asarray(value, dtype=np.float64).tolist()
+
+
+def _write_png(path: Path, image: np.ndarray) -> None:
+    path.parent.mkdir(parents=True, exist_ok=True)
+    if image.ndim == 3:
+        image = cv2.cvtColor(image, cv2.COLOR_RGB2BGR)
+    if not cv2.imwrite(str(path), image):
+        raise DataError(f"cannot write {path}: check disk space and permissions")
+
+
+def _read_png(path: Path, rgb: bool = True) -> np.ndarray:
+    image = cv2.imread(str(path), cv2.IMREAD_COLOR if rgb else cv2.IMREAD_UNCHANGED)
+    if image is None:
+        raise DataError(f"recording file {path} is missing or unreadable")
+    return cv2.cvtColor(image, cv2.COLOR_BGR2RGB) if rgb else image
+
+
+class RecordingWriter:
+    """Append Frames to a recording directory (created; must not hold another recording)."""
+
+    def __init__(
+        self,
+        path: str | Path,
+        class_names: Sequence[str] | None = None,
+        frame_period_s: float = 0.1,
+        config: dict | None = None,
+        calibration: dict | None = None,
+    ) -> None:
+        self.path = Path(path)
+        self.meta = {
+            "schema_version": SCHEMA_VERSION,
+            "class_names": None if class_names is None else list(class_names),
+            "frame_period_s": float(frame_period_s),
+            "fingers": [],
+            "digit_intrinsics": {},
+            "camera": None,
+            "calibration": calibration or {},
+            "config": config or {},
+            "num_frames": 0,
+            "has_gt_material": False,
+        }
+        self._lines = None
+        self._backgrounds: set[str] = set()
+
+    def open(self) -> None:
+        if (self.path / "frames.jsonl").exists():
+            raise DataError(f"{self.path} already holds a recording: choose another task.out")
+        self.path.mkdir(parents=True, exist_ok=True)
+        self._lines = open(self.path / "frames.jsonl", "w")  # noqa: SIM115 - kept open for the run
+        self._write_meta()
+
+    def _write_meta(self) -> None:
+        (self.path / "meta.json").write_text(json.dumps(self.meta, indent=1))
+
+    def write(self, frame: Frame, stamps: dict[str, float] | None = None) -> None:
+        if self._lines is None:
+            raise RuntimeError("RecordingWriter.open() first")
+        name = _name(frame.index)
+        record = {
+            "index": frame.index,
+            "time_s": frame.time_s,
+            "stamps": stamps or {},
+            "world_T_object": _pose(frame.world_T_object),
+            "gt_world_T_object": _pose(frame.gt_world_T_object),
+            "joint_positions": None
+            if frame.joint_positions is None
+            else np.asarray(frame.joint_positions, np.float64).tolist(),
+            "tactile": {},
+            "camera": None,
+        }
+        for finger, reading in frame.tactile.items():
+            folder = self.path / "tactile" / finger
+            _write_png(folder / f"{name}.png", reading.image)
+            if finger not in self.meta["fingers"]:
+                self.meta["fingers"].append(finger)
+                self.meta["digit_intrinsics"][finger] = reading.intrinsics.to_dict()
+            if reading.background is not None and finger not in self._backgrounds:
+                _write_png(folder / "background.png", reading.background)
+                self._backgrounds.add(finger)
+            gt = {
+                key: value
+                for key, value in (
+                    ("contact_mask", reading.gt_contact_mask),
+                    ("depth", reading.gt_depth),
+                    ("material", reading.gt_material),
+                )
+                if value is not None
+            }
+            if "material" in gt:
+                self.meta["has_gt_material"] = True
+            if gt:
+                gt_path = self.path / "gt" / "tactile" / finger / f"{name}.npz"
+                gt_path.parent.mkdir(parents=True, exist_ok=True)
+                np.savez_compressed(gt_path, **gt)
+            record["tactile"][finger] = {
+                "world_T_sensor": _pose(reading.world_T_sensor),
+                "gt": sorted(gt),
+            }
+        if frame.camera is not None:
+            cam = frame.camera
+            _write_png(self.path / "camera" / "rgb" / f"{name}.png", cam.rgb)
+            depth_path = self.path / "camera" / "depth" / f"{name}.npz"
+            depth_path.parent.mkdir(parents=True, exist_ok=True)
+            np.savez_compressed(depth_path, depth=cam.depth.astype(np.float32))
+            if cam.mask is not None:
+                _write_png(
+                    self.path / "camera" / "mask" / f"{name}.png", cam.mask.astype(np.uint8) * 255
+                )
+            if self.meta["camera"] is None:
+                self.meta["camera"] = {"name": cam.name, "intrinsics": cam.intrinsics.to_dict()}
+            record["camera"] = {
+                "world_T_camera": _pose(cam.world_T_camera),
+                "name": cam.name,
+                "mask": cam.mask is not None,
+            }
+        self._lines.write(json.dumps(record) + "\n")
+        self._lines.flush()
+        self.meta["num_frames"] += 1
+        if self.meta["num_frames"] == 1 or self.meta["num_frames"] % 50 == 0:
+            self._write_meta()
+
+    def close(self) -> None:
+        if self._lines is not None:
+            self._lines.close()
+            self._lines = None
+            self._write_meta()
+
+    def __enter__(self) -> RecordingWriter:
+        self.open()
+        return self
+
+    def __exit__(self, *exc) -> None:
+        self.close()
+
+
+class RecordingReader:
+    """Frames of a recording directory, in order."""
+
+    def __init__(self, path: str | Path) -> None:
+        self.path = Path(path)
+        meta_path = self.path / "meta.json"
+        if not meta_path.is_file() or not (self.path / "frames.jsonl").is_file():
+            raise DataError(
+                f"{self.path} is not a recording (no meta.json / frames.jsonl): fix sensor.recording"
+            )
+        self.meta = json.loads(meta_path.read_text())
+        if self.meta.get("schema_version") != SCHEMA_VERSION:
+            raise DataError(
+                f"{self.path}: recording schema {self.meta.get('schema_version')} != {SCHEMA_VERSION}"
+            )
+        with open(self.path / "frames.jsonl") as f:
+            # A run killed mid-write may leave a partial last line: keep the complete ones.
+            self.records = []
+            for line in f:
+                try:
+                    self.records.append(json.loads(line))
+                except json.JSONDecodeError:
+                    break
+        self._backgrounds: dict[str, np.ndarray | None] = {}
+
+    def __len__(self) -> int:
+        return len(self.records)
+
+    @property
+    def class_names(self) -> list[str] | None:
+        """Class list the ground-truth material labels index (None when there are none)."""
+        return self.meta.get("class_names") if self.meta.get("has_gt_material") else None
+
+    @property
+    def frame_period_s(self) -> float:
+        return float(self.meta["frame_period_s"])
+
+    def _background(self, finger: str) -> np.ndarray | None:
+        if finger not in self._backgrounds:
+            path = self.path / "tactile" / finger / "background.png"
+            self._backgrounds[finger] = _read_png(path) if path.is_file() else None
+        return self._backgrounds[finger]
+
+    def frame(self, position: int) -> Frame:
+        record = self.records[position]
+        name = _name(record["index"])
+        tactile = {}
+        for finger, info in record["tactile"].items():
+            gt = {}
+            if info["gt"]:
+                with np.load(self.path / "gt" / "tactile" / finger / f"{name}.npz") as data:
+                    gt = {key: data[key] for key in info["gt"]}
+            tactile[finger] = TactileReading(
+                finger=finger,
+                image=_read_png(self.path / "tactile" / finger / f"{name}.png"),
+                world_T_sensor=np.asarray(info["world_T_sensor"]),
+                intrinsics=Intrinsics(**self.meta["digit_intrinsics"][finger]),
+                background=self._background(finger),
+                gt_contact_mask=gt.get("contact_mask"),
+                gt_depth=gt.get("depth"),
+                gt_material=gt.get("material"),
+            )
+        camera = None
+        if record["camera"] is not None:
+            info = record["camera"]
+            with np.load(self.path / "camera" / "depth" / f"{name}.npz") as data:
+                depth = data["depth"]
+            mask = None
+            if info["mask"]:
+                mask = _read_png(self.path / "camera" / "mask" / f"{name}.png", rgb=False) > 127
+            camera = CameraReading(
+                rgb=_read_png(self.path / "camera" / "rgb" / f"{name}.png"),
+                depth=depth,
+                intrinsics=Intrinsics(**self.meta["camera"]["intrinsics"]),
+                world_T_camera=np.asarray(info["world_T_camera"]),
+                mask=mask,
+                name=info["name"],
+            )
+        gt_pose = record["gt_world_T_object"]
+        joints = record["joint_positions"]
+        return Frame(
+            index=record["index"],
+            time_s=record["time_s"],
+            world_T_object=np.asarray(record["world_T_object"]),
+            tactile=tactile,
+            camera=camera,
+            gt_world_T_object=None if gt_pose is None else np.asarray(gt_pose),
+            joint_positions=None if joints is None else np.asarray(joints),
+        )
+
+    def frames(self) -> Iterator[Frame]:
+        for position in range(len(self)):
+            yield self.frame(position)

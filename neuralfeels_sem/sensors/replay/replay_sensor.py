@@ -1,0 +1,91 @@
+"""sensor=replay: yield the Frames of a recording (task=record layout or a FeelSight log).
+
+`realtime=False` yields as fast as the consumer takes frames (the default for mapping
+and evaluation); `realtime=True` sleeps so frames come out at their recorded times.
+"""
+
+from __future__ import annotations
+
+import logging
+import time
+from collections.abc import Iterator, Sequence
+from pathlib import Path
+from typing import Any
+
+from neuralfeels_sem.errors import ConfigError, DataError
+from neuralfeels_sem.sensors.base import Sensor
+from neuralfeels_sem.sensors.frame import Frame
+
+log = logging.getLogger(__name__)
+
+
+class ReplaySensor(Sensor):
+    def __init__(
+        self,
+        recording: str | None = None,
+        realtime: bool = False,
+        format: str = "native",
+        camera: str = "front-left",
+        max_frames: int | None = None,
+        name: str = "replay",
+        obj: Any = None,
+        class_names: Sequence[str] | None = None,
+    ) -> None:
+        if format not in ("native", "feelsight"):
+            raise ValueError(f"format={format!r} must be native or feelsight")
+        self.recording = recording
+        self.realtime = realtime
+        self.format = format
+        self.camera = camera
+        self.max_frames = max_frames
+        self.name = name
+        self.obj = obj
+        self.class_names = None if class_names is None else list(class_names)
+        self._reader = None
+
+    def open(self) -> None:
+        if not self.recording:
+            raise ConfigError("sensor=replay needs a recording: set sensor.recording=PATH")
+        path = Path(self.recording).expanduser()
+        if not path.is_dir():
+            raise DataError(f"recording {path} not found: fix sensor.recording")
+        if self.format == "feelsight":
+            from neuralfeels_sem.sensors.replay.feelsight import FeelSightReader
+
+            self._reader = FeelSightReader(path, camera=self.camera)
+        else:
+            from neuralfeels_sem.sensors.replay.recording import RecordingReader
+
+            self._reader = RecordingReader(path)
+        if len(self._reader) == 0:
+            raise DataError(f"recording {path} holds no frames: record again or pick another")
+        recorded = self._reader.class_names
+        if self.class_names is not None and recorded is not None and recorded != self.class_names:
+            raise ConfigError(
+                f"recording {path} labels ground truth with materials={recorded}: run with the same materials"
+            )
+        self.frame_period_s = self._reader.frame_period_s
+        log.info("replaying %d frames from %s (%s)", len(self), path, self.format)
+
+    def __len__(self) -> int:
+        if self._reader is None:
+            return -1
+        n = len(self._reader)
+        return n if self.max_frames is None else min(n, self.max_frames)
+
+    def frames(self) -> Iterator[Frame]:
+        if self._reader is None:
+            self.open()
+        start_wall = time.monotonic()
+        start_time = None
+        for position in range(len(self)):
+            frame = self._reader.frame(position)
+            if self.realtime:
+                start_time = frame.time_s if start_time is None else start_time
+                delay = (frame.time_s - start_time) - (time.monotonic() - start_wall)
+                if delay > 0:
+                    time.sleep(delay)
+            yield frame
+
+    def close(self) -> None:
+        self._reader = None
