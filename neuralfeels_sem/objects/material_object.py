@@ -30,16 +30,32 @@ class MaterialObject:
             raise ValueError(
                 f"object {self.name!r}: {len(self.face_labels)} face labels for {len(self.mesh.faces)} faces"
             )
-        bad = (self.face_labels != IGNORE) & ((self.face_labels < 0) | (self.face_labels >= len(self.class_names)))
+        bad = (self.face_labels != IGNORE) & (
+            (self.face_labels < 0) | (self.face_labels >= len(self.class_names))
+        )
         if bad.any():
-            raise ValueError(f"object {self.name!r}: face labels outside 0..{len(self.class_names) - 1} or {IGNORE}")
+            raise ValueError(
+                f"object {self.name!r}: face labels outside 0..{len(self.class_names) - 1} or {IGNORE}"
+            )
 
     @property
     def bounds_radius(self) -> float:
         """Radius of the smallest origin-centred sphere containing the mesh."""
         return float(np.linalg.norm(self.mesh.vertices, axis=1).max())
 
-    def sample_surface(self, count: int, seed: int = 0) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
+    def area_by_material(self) -> dict[str, float]:
+        """Surface area (m^2) per class name, plus "ignore" for the unlabelled faces."""
+        areas = np.bincount(
+            self.face_labels + 1, weights=self.mesh.area_faces, minlength=len(self.class_names) + 1
+        )
+        return {
+            "ignore": float(areas[0]),
+            **{name: float(a) for name, a in zip(self.class_names, areas[1:])},
+        }
+
+    def sample_surface(
+        self, count: int, seed: int = 0
+    ) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
         """Area-uniform surface samples: (points (N,3), face index (N,), label (N,))."""
         points, faces = trimesh.sample.sample_surface(self.mesh, count, seed=seed)
         return np.asarray(points), np.asarray(faces), self.face_labels[faces]

@@ -1,0 +1,149 @@
+"""`object=custom`: any obj/ply/stl mesh with per-face labels or one material.
+
+The mesh's duplicate vertices are merged (scanned meshes such as YCB's split them at
+texture seams) before the watertight check; labels follow the file's face order.
+"""
+
+from __future__ import annotations
+
+import logging
+from collections.abc import Sequence
+from pathlib import Path
+
+import numpy as np
+import trimesh
+
+from neuralfeels_sem.errors import ConfigError, DataError
+from neuralfeels_sem.objects.label_files import read_labels
+from neuralfeels_sem.objects.material_object import MaterialObject
+from neuralfeels_sem.objects.materials import class_index, mass_and_friction
+from neuralfeels_sem.utils.paths import REPO_DIR
+
+log = logging.getLogger(__name__)
+
+MESH_SUFFIXES = (".obj", ".ply", ".stl")
+HAND_SIZE_M = (0.05, 0.12)  # largest extent a hand of this size can turn
+
+
+def resolve_path(path: str | Path, key: str) -> Path:
+    """An existing file: absolute, or relative to the working directory, then the repository."""
+    path = Path(path).expanduser()
+    for candidate in (path,) if path.is_absolute() else (Path.cwd() / path, REPO_DIR / path):
+        if candidate.is_file():
+            return candidate
+    raise DataError(f"{key}={path} does not exist: give the path of an existing file")
+
+
+def sidecar_labels(mesh_path: Path) -> Path | None:
+    """`<stem>.labels.json` or `<stem>.labels.npy` beside the mesh, if present."""
+    for suffix in (".json", ".npy"):
+        candidate = mesh_path.with_name(f"{mesh_path.stem}.labels{suffix}")
+        if candidate.is_file():
+            return candidate
+    return None
+
+
+def read_mesh(path: Path) -> trimesh.Trimesh:
+    """Vertices and faces in file order, no processing, no visuals (so seams can merge)."""
+    if path.suffix.lower() not in MESH_SUFFIXES:
+        raise DataError(f"object.mesh={path} must be one of {', '.join(MESH_SUFFIXES)}")
+    try:
+        # maintain_order keeps an obj's faces in file order (labels follow it).
+        loaded = trimesh.load(path, force="mesh", process=False, maintain_order=True)
+    except Exception as exc:  # trimesh raises many types for malformed files
+        raise DataError(
+            f"object.mesh={path} is unreadable ({type(exc).__name__}: {exc}): re-export it"
+        ) from exc
+    if not isinstance(loaded, trimesh.Trimesh) or len(loaded.faces) == 0:
+        raise DataError(f"object.mesh={path} holds no triangles: export a triangle mesh")
+    return trimesh.Trimesh(np.asarray(loaded.vertices), np.asarray(loaded.faces), process=False)
+
+
+def clean_mesh(
+    mesh: trimesh.Trimesh, labels: np.ndarray, source: Path
+) -> tuple[trimesh.Trimesh, np.ndarray]:
+    """Merge duplicate vertices, drop degenerate/duplicate faces, check it is closed, orient it."""
+    if len(labels) != len(mesh.faces):
+        raise ValueError(f"clean_mesh: {len(labels)} labels for {len(mesh.faces)} faces")
+    # process=True merges vertices by position only (no visuals) and keeps face order.
+    mesh = trimesh.Trimesh(mesh.vertices, mesh.faces, process=True)
+    keep = mesh.nondegenerate_faces() & mesh.unique_faces()  # both boolean masks
+    mesh.update_faces(keep)
+    mesh.remove_unreferenced_vertices()
+    labels = labels[keep]
+    if not mesh.is_watertight:
+        edges = trimesh.grouping.group_rows(mesh.edges_sorted, require_count=1)
+        raise DataError(
+            f"object.mesh={source} is not watertight after merging duplicate vertices "
+            f"({len(edges)} open edges): close its holes first (e.g. MeshLab, or trimesh.repair.fill_holes)"
+        )
+    if not mesh.is_winding_consistent:
+        trimesh.repair.fix_winding(mesh)
+    if mesh.volume < 0:
+        mesh.invert()
+    return mesh, labels
+
+
+def load_custom_object(
+    mesh: str,
+    class_names: Sequence[str],
+    labels: str | None = None,
+    material: str | None = None,
+    rescale_to: float | None = None,
+    name: str | None = None,
+) -> MaterialObject:
+    """Load a mesh file as a MaterialObject centred on its bounding-box centre.
+
+    Labels come from `labels` (npy/json), or `material` for the whole mesh, or a
+    `<stem>.labels.{json,npy}` file beside the mesh. `rescale_to` scales the mesh
+    uniformly so its largest extent is that many metres.
+    """
+    class_names = tuple(class_names)
+    if labels is not None and material is not None:
+        raise ConfigError(
+            f"object.labels={labels} and object.material={material} are both set: pick one"
+        )
+    if rescale_to is not None and rescale_to <= 0:
+        raise ConfigError(f"object.rescale_to={rescale_to} must be > 0 metres, or null")
+    mesh_path = resolve_path(mesh, "object.mesh")
+    if material is not None:
+        index = class_index(material, class_names, what=f"object.material={material}")
+    label_path = resolve_path(labels, "object.labels") if labels is not None else None
+    if material is None and label_path is None:
+        label_path = sidecar_labels(mesh_path)
+        if label_path is None:
+            raise ConfigError(
+                f"object.mesh={mesh_path} has no labels: set object.labels=PATH (npy/json) or object.material=NAME"
+            )
+    raw = read_mesh(mesh_path)
+    if material is not None:
+        face_labels = np.full(len(raw.faces), index, dtype=np.int64)
+    else:
+        face_labels = read_labels(label_path, class_names)
+        if len(face_labels) != len(raw.faces):
+            raise DataError(
+                f"label file {label_path} has {len(face_labels)} labels but object.mesh={mesh_path} has "
+                f"{len(raw.faces)} faces: export one label per face"
+            )
+    clean, face_labels = clean_mesh(raw, face_labels, mesh_path)
+    clean.apply_translation(-clean.bounds.mean(axis=0))
+    if rescale_to is not None:
+        clean.apply_scale(rescale_to / float(clean.extents.max()))
+    elif not HAND_SIZE_M[0] <= clean.extents.max() <= HAND_SIZE_M[1]:
+        log.warning(
+            "object.mesh=%s is %.3f m across, outside the hand's %.2f-%.2f m: set object.rescale_to",
+            mesh_path,
+            clean.extents.max(),
+            *HAND_SIZE_M,
+        )
+    mass, friction = mass_and_friction(
+        float(clean.volume), np.asarray(clean.area_faces), face_labels, class_names
+    )
+    return MaterialObject(
+        name=name or mesh_path.stem,
+        mesh=clean,
+        face_labels=face_labels,
+        class_names=class_names,
+        mass_kg=mass,
+        friction=friction,
+    )
