@@ -1,0 +1,112 @@
+"""Accuracy of the tactile material classifier during a run, against the simulator's ground truth.
+
+Each update is one classified touch: the predicted class (or NO_LABEL = -1 when the
+classifier abstained: no contact seen or confidence below threshold) and the ground-truth
+class under the contact (None when the simulator reports no contact or no material).
+Accuracy counts only touches with both a ground truth and a prediction; abstentions on
+real contacts are reported separately, never as errors.
+"""
+
+from __future__ import annotations
+
+from collections import defaultdict
+from collections.abc import Sequence
+
+import numpy as np
+
+from neuralfeels_sem.objects.material_object import IGNORE
+from neuralfeels_sem.perception.touch import NO_LABEL
+from neuralfeels_sem.sensors.frame import TactileReading
+
+
+def gt_material_of(reading: TactileReading) -> int | None:
+    """Majority ground-truth class over the contact pixels; None without contact or material."""
+    if reading.gt_material is None or reading.gt_contact_mask is None:
+        return None
+    material = np.asarray(reading.gt_material)[np.asarray(reading.gt_contact_mask, dtype=bool)]
+    material = material[material != IGNORE]
+    if material.size == 0:
+        return None
+    values, counts = np.unique(material.astype(np.int64), return_counts=True)
+    return int(values[counts.argmax()])  # ties go to the lower class index
+
+
+class ClassifierAccuracy:
+    """Running tallies of classified touches per finger and ground-truth material."""
+
+    def __init__(self) -> None:
+        # (finger, gt) -> [correct, wrong, abstained]
+        self._tally: dict[tuple[str, int], list[int]] = defaultdict(lambda: [0, 0, 0])
+        self.no_ground_truth: dict[str, int] = defaultdict(int)
+
+    def update(self, finger: str, predicted: int, gt: int | None) -> None:
+        if gt is None:
+            self.no_ground_truth[finger] += 1
+            return
+        if gt < 0:
+            raise ValueError(f"ground-truth class {gt} must be >= 0 (use None for no ground truth)")
+        tally = self._tally[(finger, int(gt))]
+        if predicted == NO_LABEL:
+            tally[2] += 1
+        elif predicted < 0:
+            raise ValueError(f"predicted class {predicted} must be >= 0 or NO_LABEL ({NO_LABEL})")
+        else:
+            tally[0 if int(predicted) == int(gt) else 1] += 1
+
+    @staticmethod
+    def _stats(tallies: list[list[int]]) -> dict:
+        correct = sum(t[0] for t in tallies)
+        wrong = sum(t[1] for t in tallies)
+        abstained = sum(t[2] for t in tallies)
+        judged = correct + wrong
+        return {
+            "accuracy": correct / judged if judged else None,
+            "correct": correct,
+            "judged": judged,
+            "abstentions": abstained,
+        }
+
+    def summary(self, class_names: Sequence[str]) -> dict:
+        """Accuracies in 0-1 (None where nothing was judged) with their counts.
+
+        Keys: overall, per_finger {finger: acc}, per_material {name: acc},
+        per_finger_material {finger: {name: acc}}, counts {finger: {name: {...}}},
+        abstentions (total), abstention_rate (abstained / touches with ground truth), no_ground_truth.
+        """
+        for _, gt in self._tally:
+            if gt >= len(class_names):
+                raise ValueError(f"ground-truth class {gt} outside class_names {list(class_names)}")
+        fingers = sorted({f for f, _ in self._tally})
+        materials = sorted({g for _, g in self._tally})
+        overall = self._stats(list(self._tally.values()))
+        out: dict = {
+            "overall": overall["accuracy"],
+            "per_finger": {},
+            "per_material": {},
+            "per_finger_material": {},
+            "counts": {},
+            "abstentions": overall["abstentions"],
+            "abstention_rate": (
+                overall["abstentions"] / (overall["judged"] + overall["abstentions"])
+                if overall["judged"] + overall["abstentions"]
+                else None
+            ),
+            "judged": overall["judged"],
+            "no_ground_truth": dict(self.no_ground_truth),
+        }
+        for finger in fingers:
+            out["per_finger"][finger] = self._stats(
+                [t for (f, _), t in self._tally.items() if f == finger]
+            )["accuracy"]
+            out["per_finger_material"][finger] = {}
+            out["counts"][finger] = {}
+            for gt in materials:
+                if (finger, gt) in self._tally:
+                    stats = self._stats([self._tally[(finger, gt)]])
+                    out["per_finger_material"][finger][class_names[gt]] = stats["accuracy"]
+                    out["counts"][finger][class_names[gt]] = stats
+        for gt in materials:
+            out["per_material"][class_names[gt]] = self._stats(
+                [t for (_, g), t in self._tally.items() if g == gt]
+            )["accuracy"]
+        return out
