@@ -51,8 +51,9 @@ def read_mesh(path: Path) -> trimesh.Trimesh:
         # maintain_order keeps an obj's faces in file order (labels follow it).
         loaded = trimesh.load(path, force="mesh", process=False, maintain_order=True)
     except Exception as exc:  # trimesh raises many types for malformed files
+        reason = (str(exc).strip().splitlines() or [""])[0]
         raise DataError(
-            f"object.mesh={path} is unreadable ({type(exc).__name__}: {exc}): re-export it"
+            f"object.mesh={path} is unreadable ({type(exc).__name__}: {reason}): re-export it"
         ) from exc
     if not isinstance(loaded, trimesh.Trimesh) or len(loaded.faces) == 0:
         raise DataError(f"object.mesh={path} holds no triangles: export a triangle mesh")

@@ -1,0 +1,60 @@
+"""conf/object/: every option instantiates a MaterialObject over the configured classes."""
+
+from __future__ import annotations
+
+import pytest
+from hydra.errors import InstantiationException
+from hydra.utils import instantiate
+
+from neuralfeels_sem.configs import validate_config
+from neuralfeels_sem.configs.object import SHIPPED_OBJECTS
+from neuralfeels_sem.errors import ConfigError
+from neuralfeels_sem.objects.material_object import MaterialObject
+from tests.helpers import CONF_DIR, compose_config
+
+
+def test_every_shipped_object_has_a_yaml() -> None:
+    assert {p.stem for p in CONF_DIR.glob("object/*.yaml")} == {*SHIPPED_OBJECTS, "custom"}
+
+
+@pytest.mark.parametrize("option", ["plushie", "custom"])
+def test_instantiate_returns_a_material_object_over_the_materials(option: str) -> None:
+    cfg = compose_config([f"object={option}", "materials=[wood,metal,plastic,fabric,glass]"])
+    validate_config(cfg)
+    obj = instantiate(cfg.object)
+    assert isinstance(obj, MaterialObject)
+    assert obj.class_names == ("wood", "metal", "plastic", "fabric", "glass")
+    assert obj.name == cfg.object.name
+
+
+def test_custom_name_defaults_to_the_file_stem() -> None:
+    cfg = compose_config(
+        ["object=custom", "object.mesh=/data/scans/mug_01.ply", "object.material=metal"]
+    )
+    assert cfg.object.name == "mug_01"
+    cfg = compose_config(["object=custom", "object.mesh=/data/scans/mug_01.ply", "object.name=mug"])
+    assert cfg.object.name == "mug"
+
+
+def test_object_missing_a_material_is_a_config_error() -> None:
+    cfg = compose_config(["object=plushie", "materials=[plastic,metal,wood]"])
+    # Hydra wraps what a target raises; the ConfigError is the cause.
+    with pytest.raises(InstantiationException) as info:
+        instantiate(cfg.object)
+    assert isinstance(info.value.__cause__, ConfigError)
+    assert "'fabric'" in str(info.value.__cause__)
+
+
+@pytest.mark.parametrize(
+    ("overrides", "message"),
+    [
+        (["object=plushie", "object.name=plushy"], "object.name='plushy' is not a shipped object"),
+        (["object=custom", "object.rescale_to=0"], "object.rescale_to=0.0 must be in"),
+        (["object=custom", "object.labels=a.npy", "object.material=metal"], "are both set"),
+    ],
+)
+def test_bad_values_fail_validation_with_one_line(overrides: list[str], message: str) -> None:
+    cfg = compose_config(overrides)
+    with pytest.raises(ConfigError, match=message) as info:
+        validate_config(cfg)
+    assert "\n" not in str(info.value)
