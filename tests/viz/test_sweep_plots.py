@@ -1,0 +1,149 @@
+"""Experiment plots from a fake sweep directory (jobs' overrides and metrics.json)."""
+
+from __future__ import annotations
+
+import json
+from pathlib import Path
+
+import numpy as np
+import pytest
+import yaml
+
+from neuralfeels_sem.eval.aggregate import summarize
+from neuralfeels_sem.viz.sweep_plots import finger_material_table, plot_experiment
+from tests.viz.images import assert_png
+
+FINGERS = ("index", "middle", "ring", "thumb")
+SINGLE = {
+    "plastic_toy": "plastic",
+    "candle_holder": "metal",
+    "fabric_toy": "fabric",
+    "yarn_ball": "fabric",
+}
+
+
+def write_job(
+    sweep: Path, name: str, overrides: list[str], metrics: dict | None, error: str | None = None
+) -> None:
+    job = sweep / name
+    (job / ".hydra").mkdir(parents=True)
+    (job / ".hydra" / "overrides.yaml").write_text(yaml.safe_dump(overrides))
+    if metrics is not None:
+        (job / "metrics.json").write_text(json.dumps(metrics))
+    if error is not None:
+        (job / "error.txt").write_text(error)
+
+
+def map_metrics(accuracy: dict, final: float, start: float = 40.0) -> dict:
+    per_finger = {f: a for f, a in accuracy.items()}
+    return {
+        "matching_pct": final,
+        "matching_curve": [[0, 0.0, start], [5, 0.5, (start + final) / 2], [10, 1.0, final]],
+        "fscore_5mm": 0.8,
+        "chamfer_mm": 3.0,
+        "classifier_accuracy": {
+            "overall": float(np.mean([a for a in accuracy.values() if a is not None])),
+            "per_finger": per_finger,
+            "per_finger_material": {
+                f: {m: a for m, a in row.items()} for f, row in accuracy.items()
+            }
+            if isinstance(next(iter(accuracy.values())), dict)
+            else {},
+        },
+    }
+
+
+def single_material_sweep(sweep: Path) -> dict[tuple[str, str], list[float]]:
+    """Objects x 2 seeds, one failed job, one job without metrics; returns the accuracies written."""
+    written: dict[tuple[str, str], list[float]] = {}
+    rng = np.random.default_rng(0)
+    k = 0
+    for obj, material in SINGLE.items():
+        for seed in (0, 1):
+            table = {f: {material: float(rng.uniform(0.2, 1.0))} for f in FINGERS}
+            table["thumb"][material] = (
+                None if obj == "plastic_toy" and seed == 0 else table["thumb"][material]
+            )
+            for f in FINGERS:
+                if table[f][material] is not None:
+                    written.setdefault((f, material), []).append(table[f][material])
+            metrics = map_metrics({f: table[f][material] for f in FINGERS}, final=70.0 + seed)
+            metrics["classifier_accuracy"]["per_finger_material"] = table
+            write_job(sweep, str(k), [f"object={obj}", f"seed={seed}"], metrics)
+            k += 1
+    write_job(
+        sweep, str(k), ["object=plastic_toy", "seed=2"], None, error="NoDataError: no touches"
+    )
+    write_job(sweep, str(k + 1), ["object=yarn_ball", "seed=2"], None)
+    return written
+
+
+def test_single_material_sweep_plots(tmp_path: Path) -> None:
+    sweep = tmp_path / "sweep"
+    written = single_material_sweep(sweep)
+    summary = summarize(sweep)
+    paths = plot_experiment(summary, sweep)
+    names = {p.name for p in paths}
+    assert {
+        "single_material_heatmap.png",
+        "single_material_bars.png",
+        "matching_curves.png",
+        "ablation.png",
+    } <= names
+    for path in paths:
+        assert path.parent == sweep
+        assert_png(path)
+    # The heatmap's numbers are the means of what the jobs wrote.
+    runs = [json.loads((sweep / j / "metrics.json").read_text()) for j in map(str, range(8))]
+    fingers, materials, values = finger_material_table(runs)
+    assert fingers == list(FINGERS) and materials == ["fabric", "metal", "plastic"]
+    for (finger, material), accuracies in written.items():
+        cell = values[fingers.index(finger), materials.index(material)]
+        assert np.nanmean(cell) == pytest.approx(100 * np.mean(accuracies))
+        assert np.sum(~np.isnan(cell)) == len(accuracies)
+
+
+def test_ablation_sweep_plots(tmp_path: Path) -> None:
+    sweep = tmp_path / "sweep"
+    k = 0
+    for concat in ("true", "false"):
+        for obj in ("patched_toy", "plushie"):
+            for seed in (0, 1):
+                final = (80.0 if concat == "true" else 65.0) + seed
+                write_job(
+                    sweep,
+                    str(k),
+                    [
+                        f"model.material.concat_sdf_features={concat}",
+                        f"object={obj}",
+                        f"seed={seed}",
+                    ],
+                    {
+                        "matching_pct": final,
+                        "matching_curve": [[0, 0.0, 40.0], [10, 1.0, final]],
+                        "fscore_5mm": 0.9,
+                    },
+                )
+                k += 1
+    paths = plot_experiment(summarize(sweep), sweep)
+    assert {p.name for p in paths} == {"matching_curves.png", "ablation.png"}
+    for path in paths:
+        assert_png(path)
+
+
+def test_nothing_to_plot_and_broken_files_do_not_crash(tmp_path: Path) -> None:
+    sweep = tmp_path / "sweep"
+    write_job(sweep, "0", ["seed=0"], None, error="DataError: missing")
+    write_job(
+        sweep,
+        "1",
+        ["seed=1"],
+        {"matching_curve": "garbage", "classifier_accuracy": {"per_finger_material": 3}},
+    )
+    summary = summarize(sweep)
+    assert plot_experiment(summary, sweep) == []
+    # A job listed as ok whose metrics.json is unreadable or gone is skipped.
+    (sweep / "1" / "metrics.json").write_text("{not json")
+    summary["jobs"].append({"job": "7", "overrides": {"seed": "7"}, "status": "ok", "metrics": {}})
+    assert plot_experiment(summary, sweep) == []
+    assert plot_experiment({}, sweep) == []
