@@ -14,18 +14,27 @@ def render_plane(
     texture_to_plane: np.ndarray,
     camera_T_plane: np.ndarray,
     intrinsics: Intrinsics,
+    supersample: int = 4,
 ) -> None:
     """Draw a grey texture lying on the plane z=0 of `camera_T_plane` into `canvas` (RGB, in place).
 
-    `texture_to_plane` (3x3) maps texture pixel (u, v, 1) to plane metres (x, y, 1).
+    `texture_to_plane` (3x3) maps texture pixel (u, v, 1) to plane metres (x, y, 1). The view
+    is rendered `supersample` times larger and area-averaged down, like a real lens and sensor
+    (a direct warp of a large texture aliases and breaks marker bits).
     """
-    plane_to_image = intrinsics.matrix @ camera_T_plane[:3][:, [0, 1, 3]]
+    s = supersample
+    # Pixel centres: big pixel (s u + (s - 1) / 2) covers small pixel u.
+    big_from_small = np.array([[s, 0, (s - 1) / 2.0], [0, s, (s - 1) / 2.0], [0, 0, 1.0]])
+    plane_to_image = big_from_small @ intrinsics.matrix @ camera_T_plane[:3][:, [0, 1, 3]]
     homography = plane_to_image @ texture_to_plane
-    size = (intrinsics.width, intrinsics.height)
+    size = (intrinsics.width * s, intrinsics.height * s)
     warped = cv2.warpPerspective(texture, homography, size, flags=cv2.INTER_LINEAR)
     coverage = cv2.warpPerspective(
         np.full(texture.shape, 255, np.uint8), homography, size, flags=cv2.INTER_LINEAR
     )
+    small = (intrinsics.width, intrinsics.height)
+    warped = cv2.resize(warped, small, interpolation=cv2.INTER_AREA)
+    coverage = cv2.resize(coverage, small, interpolation=cv2.INTER_AREA)
     inside = coverage > 127
     canvas[inside] = warped[inside][:, None]
 
