@@ -1,0 +1,122 @@
+"""Small pyrender helpers shared by the tactile and camera renderers.
+
+All poses passed in are OpenCV-convention (`utils.geometry`); the only conversion to
+OpenGL happens in `opengl_camera_pose`.
+"""
+
+from __future__ import annotations
+
+import numpy as np
+import pyrender
+import trimesh
+
+from neuralfeels_sem.objects.material_object import IGNORE, MaterialObject
+from neuralfeels_sem.utils.geometry import OPENGL_T_OPENCV, Intrinsics, check_pose
+
+
+def opengl_camera_pose(world_T_camera_cv: np.ndarray) -> np.ndarray:
+    """Pose of pyrender's OpenGL camera (looks along -z, +y up) for an OpenCV camera pose."""
+    check_pose(world_T_camera_cv, "world_T_camera")
+    # OPENGL_T_OPENCV is its own inverse: it maps GL-frame points to CV-frame points too.
+    return world_T_camera_cv @ OPENGL_T_OPENCV
+
+
+def intrinsics_camera(
+    intrinsics: Intrinsics, znear: float, zfar: float
+) -> pyrender.IntrinsicsCamera:
+    """pyrender pinhole camera matching OpenCV intrinsics.
+
+    OpenCV puts pixel centres at integer coordinates, pyrender at half-integers (pixel
+    corners at integers), so the principal point moves by half a pixel; without this
+    every depth is sampled half a pixel off (measured: 0.65 mm median error at 25 cm).
+    """
+    if not 0 < znear < zfar:
+        raise ValueError(f"need 0 < znear < zfar, got znear={znear}, zfar={zfar}")
+    return pyrender.IntrinsicsCamera(
+        fx=intrinsics.fx,
+        fy=intrinsics.fy,
+        cx=intrinsics.cx + 0.5,
+        cy=intrinsics.cy + 0.5,
+        znear=znear,
+        zfar=zfar,
+    )
+
+
+def split_by_material(obj: MaterialObject) -> list[tuple[int, trimesh.Trimesh]]:
+    """One submesh per face label present (IGNORE included), sorted by label.
+
+    Vertices are shared between submeshes so material borders stay watertight.
+    """
+    out = []
+    for label in np.unique(obj.face_labels):
+        faces = np.nonzero(obj.face_labels == label)[0]
+        sub = obj.mesh.submesh([faces], append=True, repair=False)
+        out.append((int(label), sub))
+    return out
+
+
+def seg_code(label: int) -> int:
+    """Colour code of a material label in a SEG pass: 0 = nothing, 1 = IGNORE, 2+ = classes."""
+    return 1 if label == IGNORE else label + 2
+
+
+def decode_seg(seg_rgb: np.ndarray) -> np.ndarray:
+    """SEG-pass colour (H, W, 3) -> label map int16 (-1 for nothing and IGNORE faces).
+
+    Codes are written into the red and green channels (code = r + 256 * g) so more than
+    254 classes never alias.
+    """
+    code = seg_rgb[..., 0].astype(np.int32) + 256 * seg_rgb[..., 1].astype(np.int32)
+    labels = code - 2
+    labels[code < 2] = IGNORE
+    return labels.astype(np.int16)
+
+
+def seg_colour(label: int) -> np.ndarray:
+    code = seg_code(label)
+    return np.array([code % 256, code // 256, 0], dtype=np.uint8)
+
+
+class _OffscreenKeepingDisplay(pyrender.OffscreenRenderer):
+    """OffscreenRenderer whose delete() frees only its own EGL context.
+
+    pyrender's EGL delete() calls eglTerminate on the display, which every context of
+    the process shares (the other fingers' renderers, the camera, MuJoCo's renderer):
+    closing or garbage-collecting one renderer would break all the others (EGL_BAD_DISPLAY).
+    """
+
+    def delete(self) -> None:
+        platform = getattr(self, "_platform", None)
+        if platform is None or not hasattr(platform, "_egl_display"):
+            if platform is not None:
+                super().delete()
+            return
+        from OpenGL.EGL import EGL_NO_CONTEXT, EGL_NO_SURFACE, eglDestroyContext, eglMakeCurrent
+
+        if platform._egl_context is not None:
+            platform.make_current()
+            self._renderer.delete()
+            eglMakeCurrent(platform._egl_display, EGL_NO_SURFACE, EGL_NO_SURFACE, EGL_NO_CONTEXT)
+            eglDestroyContext(platform._egl_display, platform._egl_context)
+            platform._egl_context = None
+        platform._egl_display = None  # the platform's own __del__ would eglTerminate it
+        self._renderer = None
+        self._platform = None
+
+
+class LazyOffscreen:
+    """An OffscreenRenderer created on first use, so constructors stay cheap and GL-free."""
+
+    def __init__(self, width: int, height: int) -> None:
+        self.width, self.height = width, height
+        self._renderer: pyrender.OffscreenRenderer | None = None
+
+    def get(self) -> pyrender.OffscreenRenderer:
+        if self._renderer is None:
+            self._renderer = _OffscreenKeepingDisplay(self.width, self.height)
+        return self._renderer
+
+    def close(self) -> None:
+        if self._renderer is not None:
+            self._renderer.delete()
+            self._renderer = None

@@ -1,0 +1,343 @@
+"""TACTO-style DIGIT rendering: pyrender depth + material pass, then gel optics in numpy.
+
+One pyrender pass (SEG flags) from the DIGIT's internal camera gives, per pixel, the
+object's depth along +z and the material of the visible face. Where the object reaches
+past the gel's outer surface (z < GEL_DISTANCE_M) the gel is pressed in. The indentation
+map gets each material's micro-texture (evaluated at the object-frame 3D point under the
+pixel, so the pattern moves with the object) and compliance (soft materials reach a bit
+further and blur more), is smoothed like an elastomer, turned into surface normals and
+shaded by three coloured LEDs (red, green, blue from different sides) as a change over
+the sensor's own no-contact background image, plus Gaussian pixel noise.
+
+Shading is done in numpy rather than with pyrender lights: the gel is a height field
+seen head-on, so Lambertian + Blinn-Phong on its normals is exact for that model and
+much cheaper than rendering a deformed gel mesh.
+
+One DigitRenderer per finger: each holds its own background, noise stream and GL
+context (created on the first render).
+"""
+
+from __future__ import annotations
+
+from dataclasses import dataclass
+from pathlib import Path
+
+import cv2
+import numpy as np
+import pyrender
+
+from neuralfeels_sem.objects.material_object import IGNORE, MaterialObject
+from neuralfeels_sem.sensors.frame import DIGIT_HEIGHT, DIGIT_WIDTH
+from neuralfeels_sem.sim.backgrounds import resolve_background
+from neuralfeels_sem.sim.digit_geometry import (
+    DIGIT_INTRINSICS,
+    GEL_DISTANCE_M,
+    GEL_WIDTH_M,
+    MAX_PENETRATION_M,
+)
+from neuralfeels_sem.sim.pyrender_utils import (
+    LazyOffscreen,
+    decode_seg,
+    intrinsics_camera,
+    opengl_camera_pose,
+    seg_colour,
+    split_by_material,
+)
+from neuralfeels_sem.sim.textures import MicroTexture, compliance_for, specular_for, texture_for
+from neuralfeels_sem.utils.geometry import Intrinsics, check_pose, invert_pose
+
+PIXEL_M = GEL_WIDTH_M / DIGIT_WIDTH  # gel-plane size of one pixel (75 um)
+SOFT_REACH_M = (
+    0.35e-3  # how much further a fully compliant surface (fibres, fuzz) reaches into the gel
+)
+# LEDs: direction from the gel toward each light in the sensor frame (+x = image right,
+# +y = image down, -z = back toward the camera) and its RGB colour.
+_LIGHT_DIRS = np.array([[-1.0, -0.15, -0.55], [1.0, 0.1, -0.55], [0.05, 1.0, -0.55]], np.float32)
+_LIGHT_DIRS /= np.linalg.norm(_LIGHT_DIRS, axis=1, keepdims=True)
+_LIGHT_RGB = np.array([[1.0, 0.12, 0.15], [0.1, 1.0, 0.15], [0.12, 0.2, 1.0]], np.float32)
+# Blinn-Phong half vectors between each light and the view direction (-z, toward the camera).
+_HALF_DIRS = _LIGHT_DIRS + np.array([0.0, 0.0, -1.0], np.float32)
+_HALF_DIRS /= np.linalg.norm(_HALF_DIRS, axis=1, keepdims=True)
+
+
+def _pow32(x: np.ndarray) -> np.ndarray:
+    """x ** 32 by repeated squaring (much faster than a float power)."""
+    for _ in range(5):
+        x = x * x
+    return x
+
+
+@dataclass
+class TactileRender:
+    """One simulated DIGIT frame and its per-pixel ground truth (all 320 x 240)."""
+
+    image: np.ndarray  # (320, 240, 3) uint8 RGB
+    depth: np.ndarray  # (320, 240) float32, object depth along +z where in contact, 0 elsewhere
+    contact_mask: np.ndarray  # (320, 240) bool
+    material: np.ndarray  # (320, 240) int16 class index into obj.class_names, -1 = none / ignore
+
+    @property
+    def in_contact(self) -> bool:
+        return bool(self.contact_mask.any())
+
+
+class DigitRenderer:
+    """Renders one DIGIT touching one MaterialObject.
+
+    Args:
+        obj: the object (mesh in metres, per-face material labels).
+        background: None = procedural (by `seed`), a path to an empty DIGIT frame (or a
+            folder of them; the `seed`-th is used), or a (320, 240, 3) uint8 RGB array.
+        noise_std: per-pixel Gaussian noise in grey levels.
+        seed: background and noise seed.
+        texture_scale: multiplies every material's micro-texture relief (0 = smooth).
+        compliance: per-material-name compliance 0..1 overriding the defaults
+            (fabric 1, plastic 0.15, wood 0.05, metal 0).
+        light_gain: grey levels per unit change of n . l (shading contrast).
+        press_gain: grey levels added at full press (the thinned gel looks brighter).
+        blur_px: elastomer smoothing (Gaussian sigma, pixels) of a rigid contact.
+        soft_blur_px: smoothing of a fully compliant contact.
+    """
+
+    def __init__(
+        self,
+        obj: MaterialObject,
+        background: np.ndarray | str | Path | None = None,
+        noise_std: float = 2.0,
+        seed: int = 0,
+        texture_scale: float = 1.0,
+        compliance: dict[str, float] | None = None,
+        light_gain: float = 260.0,
+        press_gain: float = 30.0,
+        blur_px: float = 0.8,
+        soft_blur_px: float = 2.2,
+    ) -> None:
+        if (
+            noise_std < 0
+            or texture_scale < 0
+            or light_gain < 0
+            or blur_px <= 0
+            or soft_blur_px < blur_px
+        ):
+            raise ValueError(
+                "need noise_std >= 0, texture_scale >= 0, light_gain >= 0, 0 < blur_px <= soft_blur_px; got "
+                f"{noise_std}, {texture_scale}, {light_gain}, {blur_px}, {soft_blur_px}"
+            )
+        self.obj = obj
+        self.noise_std = float(noise_std)
+        self.light_gain = float(light_gain)
+        self.press_gain = float(press_gain)
+        self.blur_px, self.soft_blur_px = float(blur_px), float(soft_blur_px)
+        self._background_spec = background
+        self._background: np.ndarray | None = None
+        self._seed = seed
+        self._rng = np.random.default_rng(seed)
+        names = obj.class_names
+        self._textures: list[MicroTexture] = [texture_for(n, seed, texture_scale) for n in names]
+        self._generic = texture_for("", seed, texture_scale)
+        # Per-label lookup tables; index len(names) stands for IGNORE faces.
+        self._compliance = np.array(
+            [compliance_for(n, compliance) for n in names] + [compliance_for("")], np.float32
+        )
+        self._specular = np.array([specular_for(n) for n in names] + [0.0], np.float32)
+
+        self._scene = pyrender.Scene(bg_color=[0, 0, 0, 0], ambient_light=[0, 0, 0])
+        self._nodes: list[pyrender.Node] = []
+        self._seg_map: dict[pyrender.Node, np.ndarray] = {}
+        for label, sub in split_by_material(obj):
+            node = self._scene.add(pyrender.Mesh.from_trimesh(sub, smooth=True))
+            self._nodes.append(node)
+            self._seg_map[node] = seg_colour(label)
+        # The scene is in the sensor frame: the camera is fixed, the object moves.
+        camera = intrinsics_camera(DIGIT_INTRINSICS, znear=1e-3, zfar=GEL_DISTANCE_M + 0.02)
+        self._scene.add(camera, pose=opengl_camera_pose(np.eye(4)))
+        self._gl = LazyOffscreen(DIGIT_WIDTH, DIGIT_HEIGHT)
+
+    @property
+    def intrinsics(self) -> Intrinsics:
+        return DIGIT_INTRINSICS
+
+    @property
+    def background_image(self) -> np.ndarray:
+        """The no-contact frame (320, 240, 3) uint8 RGB, without noise."""
+        if self._background is None:  # loaded lazily: a path means file I/O
+            self._background = resolve_background(self._background_spec, self._seed)
+        return self._background
+
+    def close(self) -> None:
+        """Release the GL context; a later render creates a new one."""
+        self._gl.close()
+
+    # ------------------------------------------------------------------ rendering
+    def render_geometry(
+        self, world_T_object: np.ndarray, world_T_sensor: np.ndarray
+    ) -> tuple[np.ndarray, np.ndarray]:
+        """Raw pass: object depth along +z (0 where nothing within reach) and labels (int16)."""
+        check_pose(world_T_object, "world_T_object")
+        check_pose(world_T_sensor, "world_T_sensor")
+        sensor_T_object = invert_pose(world_T_sensor) @ world_T_object
+        for node in self._nodes:
+            self._scene.set_pose(node, sensor_T_object)
+        seg, depth = self._gl.get().render(
+            self._scene, flags=pyrender.RenderFlags.SEG, seg_node_map=self._seg_map
+        )
+        return depth.astype(np.float32, copy=False), decode_seg(seg)
+
+    def render(self, world_T_object: np.ndarray, world_T_sensor: np.ndarray) -> TactileRender:
+        depth, labels = self.render_geometry(world_T_object, world_T_sensor)
+        hit = depth > 0
+        contact = hit & (depth < GEL_DISTANCE_M)
+        gt_depth = np.where(contact, depth, 0.0).astype(np.float32)
+        gt_material = np.where(contact, labels, IGNORE).astype(np.int16)
+
+        image = self.background_image.astype(np.float32)
+        reach = GEL_DISTANCE_M + SOFT_REACH_M * float(self._compliance.max()) + 0.2e-3
+        near = hit & (depth < reach)
+        if near.any():
+            object_T_sensor = invert_pose(world_T_object) @ world_T_sensor
+            self._shade(image, depth, labels, near, object_T_sensor)
+        if self.noise_std > 0:
+            # OpenCV's generator is ~8x faster than numpy's here; reseeding per frame keeps
+            # every renderer's noise stream deterministic and independent of the others.
+            cv2.setRNGSeed(int(self._rng.integers(2**31 - 1)))
+            noise = np.empty(
+                (DIGIT_HEIGHT, DIGIT_WIDTH * 3), np.float32
+            )  # 1 channel: same std everywhere
+            cv2.randn(noise, 0.0, self.noise_std)
+            image += noise.reshape(image.shape)
+        out = np.clip(image, 0, 255).astype(np.uint8)
+        return TactileRender(image=out, depth=gt_depth, contact_mask=contact, material=gt_material)
+
+    def _shade(
+        self,
+        image: np.ndarray,
+        depth: np.ndarray,
+        labels: np.ndarray,
+        near: np.ndarray,
+        object_T_sensor: np.ndarray,
+    ) -> None:
+        """Add the pressed gel's shading to `image` in place, on a crop around the contact."""
+        pad = int(np.ceil(3 * self.soft_blur_px)) + 2
+        rows, cols = np.nonzero(near)
+        r0, r1 = max(rows.min() - pad, 0), min(rows.max() + pad + 1, DIGIT_HEIGHT)
+        c0, c1 = max(cols.min() - pad, 0), min(cols.max() + pad + 1, DIGIT_WIDTH)
+        d = depth[r0:r1, c0:c1]
+        m = near[r0:r1, c0:c1]
+        lab = labels[r0:r1, c0:c1].astype(np.int64)
+        lut = np.where(lab == IGNORE, len(self._textures), lab)
+
+        # Object-frame 3D points under the near pixels, for the micro-texture.
+        v, u = np.nonzero(m)
+        z = d[v, u]
+        k = DIGIT_INTRINSICS
+        pts_s = np.stack(
+            [(u + c0 - k.cx) * z / k.fx, (v + r0 - k.cy) * z / k.fy, z], axis=1
+        ).astype(np.float32)
+        pts_o = pts_s @ object_T_sensor[:3, :3].T.astype(np.float32) + object_T_sensor[
+            :3, 3
+        ].astype(np.float32)
+        # The touched surface faces the camera: its normal is the sensor's -z in the object frame.
+        normal_o = -object_T_sensor[:3, 2]
+        lut_vu = lut[v, u]
+        present = np.unique(lut_vu)
+        relief = np.empty(len(z), np.float32)
+        for idx in present:
+            sel = slice(None) if len(present) == 1 else lut_vu == idx
+            tex = self._textures[idx] if idx < len(self._textures) else self._generic
+            relief[sel] = tex.height(pts_o[sel], normal_o)
+
+        # Indentation of the gel: texture stands proud of the surface, soft surfaces reach further.
+        comp = np.zeros(d.shape, np.float32)
+        comp[v, u] = self._compliance[lut_vu]
+        pen = np.zeros(d.shape, np.float32)
+        pen[v, u] = relief - z
+        pen += GEL_DISTANCE_M + SOFT_REACH_M * comp
+        pen[~m] = 0.0
+        np.clip(pen, 0.0, MAX_PENETRATION_M, out=pen)
+
+        # Elastomer smoothing, stronger where the material is soft.
+        w = cv2.GaussianBlur(comp, (0, 0), self.soft_blur_px)
+        h = cv2.GaussianBlur(pen, (0, 0), self.blur_px)
+        h += w * (cv2.GaussianBlur(pen, (0, 0), self.soft_blur_px) - h)
+        gloss = np.full(d.shape, 0.15, np.float32)
+        if self._specular.any():
+            spec = np.zeros(d.shape, np.float32)
+            spec[v, u] = self._specular[lut_vu]
+            gloss += cv2.GaussianBlur(spec, (0, 0), self.soft_blur_px)
+
+        # Normals of the pressed gel (height toward the camera) in the sensor frame:
+        # n = (-gx, -gy, -1) / |.|, written out per component (small arrays, many pixels).
+        gy, gx = np.gradient(h, PIXEL_M)
+        inv = 1.0 / np.sqrt(gx * gx + gy * gy + 1.0)
+        response = np.empty((*h.shape, 3), np.float32)
+        for i, ((lx, ly, lz), (hx, hy, hz)) in enumerate(zip(_LIGHT_DIRS, _HALF_DIRS)):
+            lambert = (-gx * lx - gy * ly - lz) * inv + lz  # n.l minus its flat-gel value
+            cos_h = np.clip((-gx * hx - gy * hy - hz) * inv, 0.0, 1.0)
+            response[..., i] = lambert + gloss * (_pow32(cos_h) - _pow32(-hz))
+        shading = cv2.transform(response, self.light_gain * _LIGHT_RGB.T)  # lights -> RGB
+        shading += ((self.press_gain / MAX_PENETRATION_M) * h)[..., None]
+        image[r0:r1, c0:c1] += shading
+
+
+def pose_pressing(
+    point: np.ndarray, normal: np.ndarray, press_m: float, roll_rad: float = 0.0
+) -> np.ndarray:
+    """world_T_sensor of a DIGIT whose gel centre is pressed `press_m` into a surface.
+
+    `point` and `normal` (outward) are the touched surface point and its normal in the
+    world frame; a negative `press_m` leaves a gap. `roll_rad` turns the sensor about
+    its optical axis.
+    """
+    n = np.asarray(normal, np.float64)
+    n = n / np.linalg.norm(n)
+    z = -n
+    helper = np.array([1.0, 0.0, 0.0]) if abs(z[0]) < 0.9 else np.array([0.0, 1.0, 0.0])
+    x = np.cross(helper, z)
+    x /= np.linalg.norm(x)
+    y = np.cross(z, x)
+    c, s = np.cos(roll_rad), np.sin(roll_rad)
+    x, y = c * x + s * y, -s * x + c * y
+    pose = np.eye(4)
+    pose[:3, 0], pose[:3, 1], pose[:3, 2] = x, y, z
+    pose[:3, 3] = np.asarray(point, np.float64) + n * (GEL_DISTANCE_M - press_m)
+    return pose
+
+
+def contact_sheet(
+    path: str | Path,
+    materials: tuple[str, ...] = ("plastic", "metal", "fabric", "wood"),
+    radius_m: float = 0.025,
+    press_m: float = 1.0e-3,
+    seed: int = 0,
+) -> Path:
+    """Write a PNG: the no-contact background, then each material pressed into a sphere.
+
+    Used for the README figure (docs/images/tactile_materials.png) and to eyeball realism.
+    """
+    import trimesh  # only this figure needs a primitive mesh
+
+    mesh = trimesh.creation.icosphere(subdivisions=5, radius=radius_m)
+    world_T_sensor = pose_pressing(
+        np.array([0.0, 0.0, radius_m]), np.array([0.0, 0.0, 1.0]), press_m
+    )
+    panels, names = [], ["background"]
+    for i, name in enumerate(materials):
+        obj = MaterialObject(name, mesh, np.full(len(mesh.faces), i), materials)
+        renderer = DigitRenderer(obj, seed=seed)
+        if not panels:
+            panels.append(renderer.background_image)
+        panels.append(renderer.render(np.eye(4), world_T_sensor).image)
+        names.append(name)
+        renderer.close()
+    sheet = np.concatenate(
+        [np.pad(p, ((0, 0), (2, 2), (0, 0)), constant_values=255) for p in panels], axis=1
+    )
+    sheet = np.pad(sheet, ((28, 0), (0, 0), (0, 0)), constant_values=255)
+    for i, name in enumerate(names):
+        cv2.putText(
+            sheet, name, (i * 244 + 8, 20), cv2.FONT_HERSHEY_SIMPLEX, 0.6, (0, 0, 0), 1, cv2.LINE_AA
+        )
+    path = Path(path)
+    path.parent.mkdir(parents=True, exist_ok=True)
+    cv2.imwrite(str(path), cv2.cvtColor(sheet, cv2.COLOR_RGB2BGR))
+    return path

@@ -1,0 +1,275 @@
+"""DigitRenderer: geometry round trips, contact patch size, material map, backgrounds, realism checks."""
+
+from __future__ import annotations
+
+import numpy as np
+import pytest
+import trimesh
+
+from neuralfeels_sem.errors import DataError
+from neuralfeels_sem.objects.material_object import IGNORE, MaterialObject
+from neuralfeels_sem.sim.backgrounds import (
+    load_background,
+    procedural_background,
+    resolve_background,
+)
+from neuralfeels_sem.sim.digit_geometry import DIGIT_INTRINSICS, GEL_DISTANCE_M, MAX_PENETRATION_M
+from neuralfeels_sem.sim.tactile_renderer import DigitRenderer, contact_sheet, pose_pressing
+from neuralfeels_sem.utils.geometry import (
+    backproject,
+    invert_pose,
+    rotation_matrix,
+    transform_points,
+)
+
+MATERIALS = ("plastic", "metal", "fabric", "wood")
+RADIUS = 0.025
+
+
+def _sphere(labels_fn=None, subdivisions: int = 5) -> MaterialObject:
+    mesh = trimesh.creation.icosphere(subdivisions=subdivisions, radius=RADIUS)
+    labels = (
+        np.zeros(len(mesh.faces), int) if labels_fn is None else labels_fn(mesh.triangles_center)
+    )
+    return MaterialObject("sphere", mesh, labels, MATERIALS)
+
+
+def _half_sphere_labels(centres: np.ndarray) -> np.ndarray:
+    """plastic (0) where x < 0, fabric (2) where x > 0, IGNORE below z < -0.02."""
+    labels = np.where(centres[:, 0] > 0, 2, 0)
+    labels[centres[:, 2] < -0.02] = IGNORE
+    return labels
+
+
+def _pose(angle: float = 0.7, trans=(0.05, -0.02, 0.1)) -> np.ndarray:
+    pose = np.eye(4)
+    pose[:3, :3] = rotation_matrix(np.array([0.3, -0.5, 0.8]), angle)
+    pose[:3, 3] = trans
+    return pose
+
+
+def _press(
+    world_T_object: np.ndarray, point_o: np.ndarray, press_m: float, roll: float = 0.0
+) -> np.ndarray:
+    """Sensor pose pressing `press_m` into the sphere at object-frame surface point `point_o`."""
+    normal_o = point_o / np.linalg.norm(point_o)
+    p_w = transform_points(world_T_object, (normal_o * RADIUS)[None])[0]
+    return pose_pressing(p_w, world_T_object[:3, :3] @ normal_o, press_m, roll)
+
+
+@pytest.fixture(scope="module")
+def two_material() -> DigitRenderer:
+    renderer = DigitRenderer(_sphere(_half_sphere_labels), noise_std=0.0)
+    yield renderer
+    renderer.close()
+
+
+def test_depth_round_trip_points_lie_on_mesh(two_material: DigitRenderer) -> None:
+    world_T_object = _pose()
+    world_T_sensor = _press(world_T_object, np.array([0.2, 0.5, 0.8]), 1.5e-3, roll=0.4)
+    out = two_material.render(world_T_object, world_T_sensor)
+    assert out.contact_mask.sum() > 1000
+    points_s = backproject(out.depth, two_material.intrinsics)
+    assert len(points_s) == out.contact_mask.sum()  # depth is > 0 exactly on contact
+    assert points_s[:, 2].max() < GEL_DISTANCE_M  # in front of the gel plane, +z forward
+    points_o = transform_points(invert_pose(world_T_object) @ world_T_sensor, points_s)
+    _, dist, _ = trimesh.proximity.closest_point(two_material.obj.mesh, points_o[::10])
+    assert dist.max() < 0.5e-3
+    # Tighter, against the analytic sphere (the icosphere's facets sag by about 6 um).
+    assert np.abs(np.linalg.norm(points_o, axis=1) - RADIUS).max() < 40e-6
+
+
+@pytest.mark.parametrize("press_mm", [0.5, 1.0])
+def test_contact_patch_has_the_analytic_radius(
+    two_material: DigitRenderer, press_mm: float
+) -> None:
+    d = press_mm * 1e-3
+    world_T_sensor = _press(np.eye(4), np.array([0.0, 0.0, 1.0]), d)
+    out = two_material.render(np.eye(4), world_T_sensor)
+    expected_px = np.sqrt(2 * RADIUS * d - d * d) * DIGIT_INTRINSICS.fx / GEL_DISTANCE_M
+    rows, cols = np.nonzero(out.contact_mask)
+    radius_px = np.sqrt(out.contact_mask.sum() / np.pi)
+    assert abs(radius_px - expected_px) < 2.0
+    assert (
+        abs(rows.mean() - DIGIT_INTRINSICS.cy) < 1.0
+        and abs(cols.mean() - DIGIT_INTRINSICS.cx) < 1.0
+    )
+    # Deepest point at the centre: penetration equals the press.
+    assert GEL_DISTANCE_M - out.depth[out.contact_mask].min() == pytest.approx(d, abs=2e-5)
+
+
+def test_no_contact_when_one_millimetre_away(two_material: DigitRenderer) -> None:
+    world_T_sensor = _press(np.eye(4), np.array([0.0, 0.0, 1.0]), -1e-3)
+    out = two_material.render(np.eye(4), world_T_sensor)
+    assert not out.in_contact
+    assert not out.depth.any()
+    assert (out.material == IGNORE).all()
+    np.testing.assert_array_equal(out.image, two_material.background_image)  # noise_std=0
+
+
+def test_output_types_and_shapes(two_material: DigitRenderer) -> None:
+    out = two_material.render(np.eye(4), _press(np.eye(4), np.array([0.0, 0.0, 1.0]), 1e-3))
+    assert out.image.shape == (320, 240, 3) and out.image.dtype == np.uint8
+    assert out.depth.shape == (320, 240) and out.depth.dtype == np.float32
+    assert out.contact_mask.dtype == bool and out.material.dtype == np.int16
+    assert two_material.background_image.shape == (320, 240, 3)
+    assert two_material.intrinsics == DIGIT_INTRINSICS
+
+
+def test_material_map_matches_the_faces_under_each_pixel(two_material: DigitRenderer) -> None:
+    world_T_object = _pose(angle=-0.4)
+    # Touch where the plastic/fabric border (x = 0) crosses the top of the sphere.
+    world_T_sensor = _press(world_T_object, np.array([0.0, 0.3, 1.0]), 1.5e-3, roll=0.9)
+    out = two_material.render(world_T_object, world_T_sensor)
+    points_o = transform_points(
+        invert_pose(world_T_object) @ world_T_sensor, backproject(out.depth, DIGIT_INTRINSICS)
+    )
+    labels = out.material[out.contact_mask]
+    expected = np.where(points_o[:, 0] > 0, 2, 0)
+    clear = np.abs(points_o[:, 0]) > 0.3e-3  # away from the border's triangle staircase
+    assert (labels[clear] == expected[clear]).mean() > 0.995
+    assert {0, 2} <= set(np.unique(labels).tolist())
+
+
+def test_ignore_faces_are_in_contact_without_material(two_material: DigitRenderer) -> None:
+    world_T_sensor = _press(np.eye(4), np.array([0.0, 0.0, -1.0]), 1e-3)  # bottom: IGNORE faces
+    out = two_material.render(np.eye(4), world_T_sensor)
+    assert out.in_contact
+    assert (out.material == IGNORE).all()
+
+
+def test_penetration_beyond_the_gel_range_is_still_reported_as_contact(
+    two_material: DigitRenderer,
+) -> None:
+    out = two_material.render(
+        np.eye(4), _press(np.eye(4), np.array([0.0, 0.0, 1.0]), 2 * MAX_PENETRATION_M)
+    )
+    assert out.in_contact and np.isfinite(out.image).all()
+
+
+@pytest.fixture(scope="module")
+def single_material_renders() -> dict[str, tuple[np.ndarray, np.ndarray, np.ndarray]]:
+    """name -> (image, background, contact mask) for each material pressed 1 mm, no noise."""
+    out = {}
+    world_T_sensor = _press(np.eye(4), np.array([0.0, 0.0, 1.0]), 1e-3)
+    for i, name in enumerate(MATERIALS):
+        renderer = DigitRenderer(_sphere(lambda c, i=i: np.full(len(c), i)), noise_std=0.0)
+        render = renderer.render(np.eye(4), world_T_sensor)
+        out[name] = (
+            render.image.astype(float),
+            renderer.background_image.astype(float),
+            render.contact_mask,
+        )
+        renderer.close()
+    return out
+
+
+def test_contact_is_clearly_visible_against_the_background(single_material_renders) -> None:
+    for name, (image, background, mask) in single_material_renders.items():
+        diff = np.abs(image - background).mean(axis=2)
+        assert diff[mask].mean() > 8.0, name
+        assert diff[:20, :].max() == 0.0, name  # far from the patch: untouched background
+
+
+def test_fabric_imprint_is_larger_and_softer_than_metal(single_material_renders) -> None:
+    def visible_area_and_edge(name: str) -> tuple[int, float]:
+        image, background, _ = single_material_renders[name]
+        diff = np.abs(image - background).mean(axis=2)
+        visible = diff > 3.0
+        rows = visible.any(axis=1)
+        return int(visible.sum()), float(rows.sum())
+
+    fabric_area, fabric_rows = visible_area_and_edge("fabric")
+    metal_area, metal_rows = visible_area_and_edge("metal")
+    assert (
+        single_material_renders["fabric"][2].sum() == single_material_renders["metal"][2].sum()
+    )  # same geometry
+    assert fabric_area > 1.15 * metal_area
+    assert fabric_rows > metal_rows
+
+
+def test_noise_has_the_requested_std() -> None:
+    renderer = DigitRenderer(_sphere(subdivisions=2), noise_std=3.0, seed=4)
+    out = renderer.render(np.eye(4), _press(np.eye(4), np.array([0.0, 0.0, 1.0]), -2e-3))
+    diff = out.image.astype(float) - renderer.background_image.astype(float)
+    assert diff.std() == pytest.approx(3.0, rel=0.1)
+    again = DigitRenderer(_sphere(subdivisions=2), noise_std=3.0, seed=4)
+    np.testing.assert_array_equal(
+        again.render(np.eye(4), _press(np.eye(4), np.array([0.0, 0.0, 1.0]), -2e-3)).image,
+        out.image,
+    )
+    renderer.close()
+    again.close()
+
+
+def test_bad_pose_shapes_raise() -> None:
+    renderer = DigitRenderer(_sphere(subdivisions=1))
+    with pytest.raises(ValueError):
+        renderer.render(np.eye(3), np.eye(4))
+    with pytest.raises(ValueError):
+        DigitRenderer(_sphere(subdivisions=1), noise_std=-1.0)
+
+
+# ------------------------------------------------------------------ backgrounds
+def test_procedural_background_is_digit_like_and_deterministic() -> None:
+    bg = procedural_background(seed=3)
+    assert bg.shape == (320, 240, 3) and bg.dtype == np.uint8
+    np.testing.assert_array_equal(bg, procedural_background(seed=3))
+    assert np.abs(bg.astype(int) - procedural_background(seed=4)).mean() > 1.0
+    f = bg.astype(float)
+    left, right = f[:, :80], f[:, -80:]
+    assert left[..., 0].mean() > right[..., 0].mean() + 20  # red LED on the left
+    assert right[..., 1].mean() > left[..., 1].mean() + 10  # green LED on the right
+    assert f[-60:, :, 2].mean() > f[:60, :, 2].mean()  # blue LED at the bottom
+    assert f[150:170, 100:140].mean() > f[:10, :10].mean()  # vignetting
+
+
+def test_background_from_array_path_and_errors(tmp_path) -> None:
+    bg = procedural_background(seed=1)
+    np.testing.assert_array_equal(resolve_background(bg), bg)
+    with pytest.raises(ValueError):
+        resolve_background(bg[:100])
+    import cv2
+
+    big = cv2.resize(bg, (480, 640))
+    cv2.imwrite(str(tmp_path / "big.png"), cv2.cvtColor(big, cv2.COLOR_RGB2BGR))
+    loaded = load_background(tmp_path / "big.png")
+    assert loaded.shape == (320, 240, 3)
+    assert np.abs(loaded.astype(int) - bg).mean() < 3.0  # RGB order kept through the BGR file
+    with pytest.raises(DataError, match="does not exist"):
+        load_background(tmp_path / "missing.png")
+    (tmp_path / "broken.png").write_bytes(b"not an image")
+    with pytest.raises(DataError, match="not a readable image"):
+        load_background(tmp_path / "broken.png")
+    empty = tmp_path / "empty"
+    empty.mkdir()
+    with pytest.raises(DataError, match="no PNG/JPG"):
+        resolve_background(empty)
+    with pytest.raises(DataError):
+        _ = DigitRenderer(
+            _sphere(subdivisions=1), background=str(tmp_path / "missing.png")
+        ).background_image
+
+
+def test_real_backgrounds_load(shared_data) -> None:
+    folder = shared_data / "digit_real" / "backgrounds"
+    files = sorted(p for p in folder.iterdir() if p.suffix.lower() in (".png", ".jpg"))
+    assert len(files) > 10
+    for path in files:
+        bg = load_background(path)
+        assert bg.shape == (320, 240, 3) and bg.dtype == np.uint8
+        assert 40 < bg.mean() < 200
+    # A folder picks its seed-th frame, so each finger can get its own real background.
+    np.testing.assert_array_equal(resolve_background(folder, seed=1), load_background(files[1]))
+    renderer = DigitRenderer(_sphere(subdivisions=2), background=str(files[0]), noise_std=0.0)
+    out = renderer.render(np.eye(4), _press(np.eye(4), np.array([0.0, 0.0, 1.0]), 1e-3))
+    np.testing.assert_array_equal(out.image[:20], load_background(files[0])[:20])
+    renderer.close()
+
+
+def test_contact_sheet_writes_a_png(tmp_path) -> None:
+    import cv2
+
+    path = contact_sheet(tmp_path / "sheet.png")
+    image = cv2.imread(str(path))
+    assert image is not None and image.shape[0] >= 320 and image.shape[1] >= 5 * 240
