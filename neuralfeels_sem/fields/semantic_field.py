@@ -1,0 +1,147 @@
+"""SemanticField: f(x) = (SDF(x), g([SH(dir) || x || z(x)])) over a cube around the object.
+
+Points are metres in the object frame. They are normalised to x_n = (x - center) / bound
+in [-1, 1]^3; points outside the cube are clamped onto its faces, so the SDF (and its
+gradient, which is zero across the clamp) there is not meaningful: sample inside the bound.
+The SDF MLP predicts distance in normalised units and the field returns it in metres
+(times `bound`), so a unit-norm gradient in metres is the eikonal condition.
+"""
+
+from __future__ import annotations
+
+from collections.abc import Sequence
+
+import torch
+from torch import Tensor, nn
+
+from neuralfeels_sem.configs.model import HashGridConfig, MaterialHeadConfig, SdfHeadConfig
+from neuralfeels_sem.fields.hash_grid import HashGridEncoding
+from neuralfeels_sem.fields.heads import MaterialHead, SdfHead
+
+
+def _check_points(x: Tensor) -> None:
+    if x.ndim != 2 or x.shape[1] != 3:
+        raise ValueError(f"points must have shape (N, 3), got {tuple(x.shape)}")
+
+
+class SemanticField(nn.Module):
+    """Neural SDF with a parallel material-classification branch."""
+
+    def __init__(
+        self,
+        num_classes: int,
+        bound: float = 0.1,
+        center: Sequence[float] = (0.0, 0.0, 0.0),
+        encoding: HashGridConfig | None = None,
+        sdf: SdfHeadConfig | None = None,
+        material: MaterialHeadConfig | None = None,
+    ) -> None:
+        super().__init__()
+        if num_classes < 2:
+            raise ValueError(f"num_classes={num_classes} must be >= 2")
+        if bound <= 0:
+            raise ValueError(f"bound={bound} must be > 0")
+        if len(center) != 3:
+            raise ValueError(f"center={list(center)} must have 3 values")
+        encoding = encoding or HashGridConfig()
+        sdf = sdf or SdfHeadConfig()
+        material = material or MaterialHeadConfig()
+        self.num_classes = num_classes
+        self.bound = float(bound)
+        self.register_buffer("center", torch.tensor([float(c) for c in center]))
+        self.encoding = HashGridEncoding(
+            num_levels=encoding.num_levels,
+            features_per_level=encoding.features_per_level,
+            base_resolution=encoding.base_resolution,
+            per_level_scale=encoding.per_level_scale,
+            log2_table_size=encoding.log2_table_size,
+            init_scale=encoding.init_scale,
+            sparse_grad=encoding.sparse_grad,
+        )
+        self.sdf_head = SdfHead(self.encoding.out_dim, sdf.hidden_dim, sdf.num_layers)
+        self.concat_sdf_features = material.concat_sdf_features
+        self.backprop_to_sdf = material.backprop_to_sdf
+        self.material_head = MaterialHead(
+            num_classes,
+            sdf_feature_dim=sdf.hidden_dim if material.concat_sdf_features else 0,
+            include_position=material.include_position,
+            sh_degree=material.sh_degree,
+            hidden_dim=material.hidden_dim,
+            num_layers=material.num_layers,
+        )
+
+    def normalise(self, x: Tensor) -> Tensor:
+        """Metres in the object frame -> [-1, 1]^3 (clamped)."""
+        _check_points(x)
+        return ((x - self.center) / self.bound).clamp(-1.0, 1.0)
+
+    def _sdf_branch(self, x_n: Tensor) -> tuple[Tensor, Tensor]:
+        features = self.encoding((x_n + 1.0) * 0.5)
+        sdf_n, hidden = self.sdf_head(features)
+        return sdf_n * self.bound, hidden
+
+    def _material_branch(self, x_n: Tensor, hidden: Tensor | None) -> Tensor:
+        if self.concat_sdf_features and not self.backprop_to_sdf and hidden is not None:
+            hidden = hidden.detach()
+        return self.material_head(x_n, hidden if self.concat_sdf_features else None)
+
+    def forward(self, x: Tensor) -> dict[str, Tensor]:
+        """x (N, 3) metres -> {"sdf": (N,) metres, "material_logits": (N, C), "sdf_features": (N, H)}."""
+        x_n = self.normalise(x)
+        sdf, hidden = self._sdf_branch(x_n)
+        logits = self._material_branch(x_n, hidden)
+        return {"sdf": sdf, "material_logits": logits, "sdf_features": hidden}
+
+    def sdf(self, x: Tensor) -> Tensor:
+        """Signed distance (N,) in metres; skips the material branch."""
+        return self._sdf_branch(self.normalise(x))[0]
+
+    def material_logits(self, x: Tensor) -> Tensor:
+        """Material class logits (N, C); runs the SDF branch only when concatenating z(x)."""
+        x_n = self.normalise(x)
+        hidden = self._sdf_branch(x_n)[1] if self.concat_sdf_features else None
+        return self._material_branch(x_n, hidden)
+
+    @torch.no_grad()
+    def predict_material(self, x: Tensor) -> Tensor:
+        """Most likely class index (N,) long."""
+        return self.material_logits(x).argmax(dim=-1)
+
+    def sdf_gradient(self, x: Tensor, create_graph: bool = True) -> tuple[Tensor, Tensor]:
+        """(sdf (N,), d sdf / d x (N, 3)) by autograd, for the eikonal loss and pose tracking.
+
+        With `create_graph` (default) the gradient is differentiable, so a loss on it trains
+        the field; pass False for a cheaper read-only gradient. Works under torch.no_grad.
+        """
+        _check_points(x)
+        with torch.enable_grad():
+            x = x.detach().requires_grad_(True)
+            sdf = self.sdf(x)
+            (grad,) = torch.autograd.grad(sdf.sum(), x, create_graph=create_graph)
+        return sdf, grad
+
+
+def evaluate_chunked(
+    fn, x: Tensor, chunk: int = 65536, no_grad: bool = True, progress: bool = False
+):
+    """Apply `fn` to x (N, ...) in chunks of `chunk` rows and concatenate the results.
+
+    `fn` returns a Tensor or a dict of Tensors (first dimension N). Used for dense queries
+    (marching cubes over 128^3 to 256^3 points) that would not fit in memory at once.
+    """
+    if chunk < 1:
+        raise ValueError(f"chunk={chunk} must be >= 1")
+    if x.shape[0] == 0:
+        raise ValueError("evaluate_chunked needs at least one point")
+    starts = range(0, x.shape[0], chunk)
+    if progress:
+        from tqdm import tqdm
+
+        starts = tqdm(starts, desc="field query", unit="chunk")
+    outputs = []
+    with torch.set_grad_enabled(not no_grad and torch.is_grad_enabled()):
+        for start in starts:
+            outputs.append(fn(x[start : start + chunk]))
+    if isinstance(outputs[0], dict):
+        return {key: torch.cat([o[key] for o in outputs]) for key in outputs[0]}
+    return torch.cat(outputs)

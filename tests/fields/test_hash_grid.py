@@ -1,0 +1,131 @@
+"""Hash-grid encoding: exact interpolation, dense/hashed indexing, gradients, sparse grads."""
+
+from __future__ import annotations
+
+import pytest
+import torch
+
+from neuralfeels_sem.fields.hash_grid import HASH_PRIMES, HashGridEncoding
+
+
+def _tiny(dtype=torch.float64, **kwargs) -> HashGridEncoding:
+    args = dict(
+        num_levels=3,
+        features_per_level=2,
+        base_resolution=2,
+        per_level_scale=2.0,
+        log2_table_size=6,
+    )
+    args.update(kwargs)
+    enc = HashGridEncoding(**args).to(dtype)
+    with torch.no_grad():
+        enc.table.normal_()  # well away from zero so exact checks are meaningful
+    return enc
+
+
+def test_levels_resolutions_and_dense_prefix() -> None:
+    enc = HashGridEncoding(num_levels=3, base_resolution=2, per_level_scale=2.0, log2_table_size=6)
+    # Resolutions 2, 4, 8: vertices 27 and 125 and 729; only 27 <= 64 is dense.
+    assert enc.resolutions == [2, 4, 8]
+    assert enc.num_dense_levels == 1
+    assert enc.level_rows == [27, 64, 64]
+    assert enc.table.shape == (27 + 64 + 64, 2)
+    assert enc.out_dim == 6
+    # The paper's defaults at the CPU table size: 16 levels up to resolution 2047, 5 dense.
+    enc = HashGridEncoding(log2_table_size=19)
+    assert enc.resolutions[0] == 16 and enc.resolutions[-1] == 2047
+    assert enc.num_dense_levels == 5
+    assert all((r + 1) ** 3 <= 2**19 for r in enc.resolutions[:5])
+    assert (enc.resolutions[5] + 1) ** 3 > 2**19
+
+
+def test_interpolation_at_grid_corners_returns_stored_features() -> None:
+    enc = _tiny()
+    res = 2
+    ijk = torch.cartesian_prod(*[torch.arange(res + 1)] * 3)  # every vertex of level 0
+    x = ijk.to(torch.float64) / res
+    out = enc(x)[:, :2]  # level 0 features
+    dense_rows = ijk[:, 0] + ijk[:, 1] * (res + 1) + ijk[:, 2] * (res + 1) ** 2
+    torch.testing.assert_close(out, enc.table[dense_rows], rtol=0, atol=1e-12)
+
+
+def test_hashed_level_corner_uses_the_instant_ngp_hash() -> None:
+    enc = _tiny()
+    level, res = 2, 8
+    ijk = torch.tensor([[3, 5, 7], [8, 0, 1], [0, 0, 0]])
+    x = ijk.to(torch.float64) / res
+    h = (ijk[:, 0] * HASH_PRIMES[0]) ^ (ijk[:, 1] * HASH_PRIMES[1]) ^ (ijk[:, 2] * HASH_PRIMES[2])
+    rows = (h % 64) + 27 + 64  # level 2 starts after level 0 (27 rows) and level 1 (64)
+    torch.testing.assert_close(
+        enc(x)[:, 2 * level : 2 * level + 2], enc.table[rows], rtol=0, atol=1e-12
+    )
+
+
+def test_midpoint_is_mean_of_the_cell_corners() -> None:
+    enc = _tiny()
+    res = 2
+    lower = torch.tensor([1, 0, 1])
+    x = ((lower + 0.5) / res).to(torch.float64)[None]
+    corners = lower + torch.cartesian_prod(*[torch.arange(2)] * 3)
+    rows = corners[:, 0] + corners[:, 1] * 3 + corners[:, 2] * 9
+    torch.testing.assert_close(enc(x)[0, :2], enc.table[rows].mean(0), rtol=0, atol=1e-12)
+
+
+def test_interpolation_is_linear_along_an_edge() -> None:
+    enc = _tiny()
+    a, b = enc.table[0], enc.table[1]  # vertices (0,0,0) and (1,0,0) of level 0
+    t = torch.tensor([0.0, 0.25, 0.7, 1.0], dtype=torch.float64)
+    x = torch.stack([t / 2, torch.zeros_like(t), torch.zeros_like(t)], dim=-1)
+    torch.testing.assert_close(
+        enc(x)[:, :2], (1 - t)[:, None] * a + t[:, None] * b, rtol=0, atol=1e-12
+    )
+
+
+def test_upper_face_is_inside_the_grid() -> None:
+    enc = _tiny()
+    out = enc(torch.ones(1, 3, dtype=torch.float64))
+    assert torch.isfinite(out).all()
+    torch.testing.assert_close(out[0, :2], enc.table[26], rtol=0, atol=1e-12)  # vertex (2,2,2)
+
+
+def test_gradcheck_inputs_and_table() -> None:
+    torch.manual_seed(0)
+    enc = _tiny(sparse_grad=False)
+    # Away from cell faces, where the encoding is smooth.
+    x = (torch.rand(6, 3, dtype=torch.float64) * 0.8 + 0.1).requires_grad_(True)
+    assert torch.autograd.gradcheck(
+        lambda p, t: torch.func.functional_call(enc, {"table": t}, (p,)), (x, enc.table)
+    )
+
+
+def test_sparse_gradient_matches_dense_gradient() -> None:
+    torch.manual_seed(0)
+    enc = _tiny(dtype=torch.float32, log2_table_size=8)
+    x = torch.rand(200, 3)
+    target = torch.randn(200, enc.out_dim)
+    grads = {}
+    for sparse in (False, True):
+        enc.sparse_grad = sparse
+        enc.table.grad = None
+        ((enc(x) - target) ** 2).sum().backward()
+        grads[sparse] = enc.table.grad
+    assert grads[True].is_sparse and not grads[False].is_sparse
+    torch.testing.assert_close(grads[True].to_dense(), grads[False], rtol=1e-5, atol=1e-6)
+    # Only the rows of the touched cells appear in the sparse gradient.
+    touched = torch.unique(enc.corner_indices(x)[0])
+    torch.testing.assert_close(torch.unique(grads[True].coalesce().indices()[0]), touched)
+
+
+def test_deterministic_init_and_shapes() -> None:
+    torch.manual_seed(3)
+    a = HashGridEncoding(log2_table_size=10, init_scale=1e-3)
+    torch.manual_seed(3)
+    b = HashGridEncoding(log2_table_size=10, init_scale=1e-3)
+    assert torch.equal(a.table, b.table)
+    assert a.table.abs().max() <= 1e-3
+    with pytest.raises(ValueError, match=r"\(N, 3\)"):
+        a(torch.zeros(5, 2))
+    with pytest.raises(ValueError, match="per_level_scale"):
+        HashGridEncoding(per_level_scale=0.5)
+    with pytest.raises(ValueError, match="log2_table_size"):
+        HashGridEncoding(log2_table_size=40)
