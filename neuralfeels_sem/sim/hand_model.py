@@ -41,7 +41,11 @@ FINGER_SPLAY_RAD = {
     "middle": 0.0,
     "ring": 0.0873,
 }  # Allegro's 5 degree splay about x
-THUMB_BASE = (-0.0182, 0.019333, -0.045987)
+THUMB_BASE = (
+    -0.0182,
+    0.0,
+    -0.045987,
+)  # Allegro: y = 0.019; centred here to oppose the middle finger
 
 # DIGIT on the distal link (frame at the last joint, link along +z, pad toward +x).
 DIGIT_ALONG = 0.025  # gel centre distance from the last joint along the finger

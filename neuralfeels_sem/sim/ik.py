@@ -84,29 +84,34 @@ class FingertipIK:
                 raise ValueError(f"unknown finger {finger!r}; expected one of {FINGERS}")
         errors = dict.fromkeys(targets, np.inf)
         active = set(targets)
+        eye = self.damping * np.eye(6)
         for _ in range(self.iterations):
             self.forward()
             for finger in list(active):
                 target = targets[finger]
                 pos, pad = self.gel_pose(finger)
                 err_p = target.gel_position - pos
-                errors[finger] = float(np.linalg.norm(err_p))
-                err_r = np.cross(
+                errors[finger] = float(np.sqrt(err_p @ err_p))
+                err_r = _cross(
                     pad, target.pad_direction
                 )  # axis * sin(angle) toward the target normal
-                if errors[finger] < self.tolerance_m and np.linalg.norm(err_r) < 0.05:
-                    active.discard(finger)
-                    continue
                 mujoco.mj_jacSite(
                     self.model, self.data, self._jacp, self._jacr, self.site_ids[finger]
                 )
                 dofs = self.dof_adr[finger]
-                jac = np.vstack([self._jacp[:, dofs], self.normal_weight * self._jacr[:, dofs]])
+                jac = np.concatenate(
+                    [self._jacp[:, dofs], self.normal_weight * self._jacr[:, dofs]]
+                )
                 err = np.concatenate([err_p, self.normal_weight * err_r])
-                dq = jac.T @ np.linalg.solve(jac @ jac.T + self.damping * np.eye(6), err)
+                dq = jac.T @ np.linalg.solve(jac @ jac.T + eye, err)
                 adr = self.qpos_adr[finger]
                 lim = self.limits[finger]
-                self.data.qpos[adr] = np.clip(self.data.qpos[adr] + dq, lim[:, 0], lim[:, 1])
+                before = self.data.qpos[adr].copy()
+                self.data.qpos[adr] = np.clip(before + dq, lim[:, 0], lim[:, 1])
+                # Converged on position, or stalled (the normal cannot be matched any better).
+                moved = np.abs(self.data.qpos[adr] - before).max()
+                if (errors[finger] < self.tolerance_m and moved < 1e-3) or moved < 1e-5:
+                    active.discard(finger)
             if not active:
                 break
         self.forward()
@@ -115,6 +120,13 @@ class FingertipIK:
                 np.linalg.norm(targets[finger].gel_position - self.gel_pose(finger)[0])
             )
         return errors
+
+
+def _cross(a: np.ndarray, b: np.ndarray) -> np.ndarray:
+    """Cross product of two 3-vectors (np.cross is slow for single vectors)."""
+    return np.array(
+        [a[1] * b[2] - a[2] * b[1], a[2] * b[0] - a[0] * b[2], a[0] * b[1] - a[1] * b[0]]
+    )
 
 
 def ids_of(model: mujoco.MjModel, finger: str) -> list[int]:

@@ -1,0 +1,148 @@
+"""Schemas for sensor=sim (the simulated rig) and task=collect_tactile."""
+
+from __future__ import annotations
+
+from dataclasses import dataclass, field
+
+from neuralfeels_sem.sensors.frame import FINGERS
+from neuralfeels_sem.sim.digit_geometry import MAX_PENETRATION_M
+
+
+def _check_firmness(name: str, firmness: dict[str, float]) -> None:
+    for finger, mm in firmness.items():
+        if finger not in FINGERS:
+            raise ValueError(f"{name}: unknown finger {finger!r}; use {', '.join(FINGERS)}")
+        if not 0.0 < mm <= MAX_PENETRATION_M * 1000:
+            raise ValueError(f"{name}.{finger}={mm} must be in (0, {MAX_PENETRATION_M * 1000}] mm")
+
+
+@dataclass
+class SimTactileConfig:
+    """Options of each DIGIT renderer (sim/tactile_renderer.py)."""
+
+    background: str | None = None  # null: procedural; or an empty DIGIT frame / a folder of them
+    noise_std: float = 2.0  # grey levels
+    texture_scale: float = 1.0  # 0 = smooth materials
+
+    def __post_init__(self) -> None:
+        if self.noise_std < 0 or self.texture_scale < 0:
+            raise ValueError(
+                f"sensor.tactile: noise_std={self.noise_std} and texture_scale={self.texture_scale} must be >= 0"
+            )
+
+
+@dataclass
+class SimRgbdConfig:
+    """The front-left RGB-D camera (sim/camera_renderer.py)."""
+
+    width: int = 320
+    height: int = 240
+    fov_y_deg: float = 50.0
+    depth_noise_std: float = 0.0  # metres
+    distance: float = 0.35  # from the grasp centre
+
+    def __post_init__(self) -> None:
+        if self.width < 16 or self.height < 16:
+            raise ValueError(f"sensor.rgbd: {self.width}x{self.height} must be at least 16x16")
+        if not 1.0 < self.fov_y_deg < 170.0:
+            raise ValueError(f"sensor.rgbd.fov_y_deg={self.fov_y_deg} must be in (1, 170)")
+        if self.depth_noise_std < 0 or self.distance <= 0:
+            raise ValueError("sensor.rgbd: depth_noise_std must be >= 0 and distance > 0")
+
+
+@dataclass
+class SimSensorConfig:
+    _target_: str = "neuralfeels_sem.sensors.sim.SimSensor"
+    _partial_: bool = True  # completed by the task with obj=..., class_names=...
+    _convert_: str = "all"
+    name: str = "sim"
+    duration_s: float = 10.0
+    fps: float = 10.0
+    fingers: list[str] = field(default_factory=lambda: list(FINGERS))
+    camera: bool = True
+    rotation_axis: list[float] = field(default_factory=lambda: [0.0, 0.0, 1.0])  # world frame
+    rotation_speed_deg_s: float = 30.0
+    wobble_deg: float = 4.0
+    gait_period_s: float = 1.2  # one contact-lift-move-touch cycle per finger
+    contact_fraction: float = 0.75  # share of the cycle in contact
+    # Press depth per finger in mm; the paper saw weaker thumb contact.
+    firmness_mm: dict[str, float] = field(
+        default_factory=lambda: {"index": 1.5, "middle": 1.5, "ring": 1.5, "thumb": 0.7}
+    )
+    seed: int = 0  # the yaml sets ${seed}
+    tactile: SimTactileConfig = field(default_factory=SimTactileConfig)
+    rgbd: SimRgbdConfig = field(default_factory=SimRgbdConfig)
+
+    def __post_init__(self) -> None:
+        if self.duration_s <= 0:
+            raise ValueError(f"sensor.duration_s={self.duration_s} must be > 0")
+        if self.fps <= 0:
+            raise ValueError(f"sensor.fps={self.fps} must be > 0")
+        if not self.fingers or any(f not in FINGERS for f in self.fingers):
+            raise ValueError(
+                f"sensor.fingers={self.fingers} must be a non-empty subset of {list(FINGERS)}"
+            )
+        if len(self.rotation_axis) != 3 or sum(v * v for v in self.rotation_axis) < 1e-12:
+            raise ValueError(
+                f"sensor.rotation_axis={self.rotation_axis} must be a non-zero [x, y, z]"
+            )
+        if self.gait_period_s <= 0:
+            raise ValueError(f"sensor.gait_period_s={self.gait_period_s} must be > 0")
+        if not 0.0 < self.contact_fraction < 1.0:
+            raise ValueError(f"sensor.contact_fraction={self.contact_fraction} must be in (0, 1)")
+        _check_firmness("sensor.firmness_mm", self.firmness_mm)
+
+
+@dataclass
+class CollectTactileTaskConfig:
+    _target_: str = "neuralfeels_sem.tasks.collect_tactile.run"
+    name: str = "collect_tactile"
+    root: str = "${dataset.root}"  # writes <root>/<sensor>/<material>/<id>.png
+    samples_per_class_per_sensor: int = 300
+    sensors: list[str] = field(default_factory=lambda: list(FINGERS))
+    # Shipped objects whose regions add real-shaped touches of their materials (besides primitives).
+    library_objects: list[str] = field(
+        default_factory=lambda: [
+            "plushie",
+            "patched_toy",
+            "fabric_toy",
+            "yarn_ball",
+            "candle_holder",
+            "powder_shaker",
+            "plastic_toy",
+        ]
+    )
+    firmness_mm: dict[str, float] = field(
+        default_factory=lambda: {"index": 1.5, "middle": 1.5, "ring": 1.5, "thumb": 0.7}
+    )
+    firmness_spread: float = 0.35  # relative std of the press depth around a finger's firmness
+    max_tilt_deg: float = 10.0
+    min_purity: float = 0.95  # share of contact pixels that must be the labelled material
+    min_contact_px: int = 400
+    overwrite: bool = False  # false: refuse to write into a non-empty root
+    seed: int = 0  # the yaml sets ${seed}
+    tactile: SimTactileConfig = field(default_factory=SimTactileConfig)
+
+    def __post_init__(self) -> None:
+        if self.samples_per_class_per_sensor < 1:
+            raise ValueError(
+                f"task.samples_per_class_per_sensor={self.samples_per_class_per_sensor} must be >= 1"
+            )
+        if not self.sensors or any(f not in FINGERS for f in self.sensors):
+            raise ValueError(
+                f"task.sensors={self.sensors} must be a non-empty subset of {list(FINGERS)}"
+            )
+        _check_firmness("task.firmness_mm", self.firmness_mm)
+        if not 0.0 <= self.firmness_spread < 1.0:
+            raise ValueError(f"task.firmness_spread={self.firmness_spread} must be in [0, 1)")
+        if not 0.0 <= self.max_tilt_deg < 60.0:
+            raise ValueError(f"task.max_tilt_deg={self.max_tilt_deg} must be in [0, 60)")
+        if not 0.5 <= self.min_purity <= 1.0:
+            raise ValueError(f"task.min_purity={self.min_purity} must be in [0.5, 1]")
+        if self.min_contact_px < 1:
+            raise ValueError(f"task.min_contact_px={self.min_contact_px} must be >= 1")
+
+
+def register(cs) -> None:
+    cs.store(group="schema/sensor", name="sim", node=SimSensorConfig)
+    cs.store(group="schema/task", name="collect_tactile", node=CollectTactileTaskConfig)

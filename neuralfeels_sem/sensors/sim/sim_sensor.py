@@ -1,0 +1,184 @@
+"""SimSensor: Frames from the simulated rig, with full ground truth.
+
+Per frame (time index / fps): the rig (sim/rig.py) turns the object and places the
+fingers, each configured DIGIT is rendered at its fingertip pose, and the camera
+renders RGB-D with the hand's links as occluders. Each finger's renderer is seeded
+with `seed + finger index`, so a finger keeps its own background (like a physical
+sensor) and task=collect_tactile, which uses the same seeds, trains the classifier on
+the same sensors a run sees.
+"""
+
+from __future__ import annotations
+
+from collections.abc import Iterator, Sequence
+
+import numpy as np
+
+from neuralfeels_sem.errors import ConfigError
+from neuralfeels_sem.objects.material_object import MaterialObject
+from neuralfeels_sem.sensors.base import Sensor
+from neuralfeels_sem.sensors.frame import FINGERS, Frame, TactileReading
+from neuralfeels_sem.sim.digit_geometry import DIGIT_INTRINSICS
+
+DEFAULT_FIRMNESS_MM = {"index": 1.5, "middle": 1.5, "ring": 1.5, "thumb": 0.7}
+
+
+def finger_seed(seed: int, finger: str) -> int:
+    """Renderer seed of one finger's DIGIT (its background and noise stream)."""
+    return seed + FINGERS.index(finger)
+
+
+class SimSensor(Sensor):
+    """The simulated rig. Construction stores arguments; `open()` builds scene and renderers.
+
+    Args:
+        obj: the object (the task passes the instantiated cfg.object).
+        class_names: the run's material classes; must equal obj.class_names.
+        duration_s, fps: run length and frame rate (sensor time).
+        fingers: DIGITs to render (the others stay bent back, out of the way).
+        camera: render the RGB-D camera.
+        rotation_axis, rotation_speed_deg_s, wobble_deg: the object's motion.
+        gait_period_s, contact_fraction: finger gaiting cycle.
+        firmness_mm: press depth per finger (thumb weaker by default, as in the paper).
+        tactile: DigitRenderer options (background, noise_std, texture_scale, ...).
+        rgbd: camera options (width, height, fov_y_deg, depth_noise_std, distance).
+    """
+
+    def __init__(
+        self,
+        obj: MaterialObject | None = None,
+        class_names: Sequence[str] | None = None,
+        name: str = "sim",
+        duration_s: float = 10.0,
+        fps: float = 10.0,
+        fingers: Sequence[str] = FINGERS,
+        camera: bool = True,
+        rotation_axis: Sequence[float] = (0.0, 0.0, 1.0),
+        rotation_speed_deg_s: float = 30.0,
+        wobble_deg: float = 4.0,
+        gait_period_s: float = 1.2,
+        contact_fraction: float = 0.75,
+        firmness_mm: dict[str, float] | None = None,
+        seed: int = 0,
+        tactile: dict | None = None,
+        rgbd: dict | None = None,
+    ) -> None:
+        if duration_s <= 0 or fps <= 0:
+            raise ValueError(f"duration_s and fps must be > 0, got {duration_s}, {fps}")
+        self.obj = obj
+        self.class_names = None if class_names is None else tuple(class_names)
+        self.name = name
+        self.duration_s, self.fps = float(duration_s), float(fps)
+        self.frame_period_s = 1.0 / self.fps
+        self.fingers = tuple(f for f in FINGERS if f in fingers)
+        unknown = set(fingers) - set(FINGERS)
+        if unknown or not self.fingers:
+            raise ValueError(
+                f"fingers must be a non-empty subset of {FINGERS}, got {list(fingers)}"
+            )
+        self.camera_enabled = bool(camera)
+        self.rotation_axis = tuple(float(v) for v in rotation_axis)
+        self.rotation_speed, self.wobble_deg = float(rotation_speed_deg_s), float(wobble_deg)
+        self.gait_period_s, self.contact_fraction = float(gait_period_s), float(contact_fraction)
+        firmness = dict(DEFAULT_FIRMNESS_MM)
+        firmness.update(firmness_mm or {})
+        self.firmness_mm = firmness
+        self.seed = int(seed)
+        self.tactile_options = dict(tactile or {})
+        self.rgbd_options = dict(rgbd or {})
+        self.rig = None
+        self.renderers: dict = {}
+        self.camera_renderer = None
+
+    def __len__(self) -> int:
+        return int(np.floor(self.duration_s * self.fps + 1e-9))
+
+    def open(self) -> None:
+        if self.rig is not None:
+            return
+        from neuralfeels_sem.sim.camera_renderer import CameraRenderer
+        from neuralfeels_sem.sim.rig import SimRig
+        from neuralfeels_sem.sim.tactile_renderer import DigitRenderer
+
+        if self.obj is None:
+            raise ConfigError(
+                "sensor=sim needs an object: pick one with object=<name> (see conf/object/)"
+            )
+        if self.class_names is not None and tuple(self.obj.class_names) != self.class_names:
+            raise ConfigError(
+                f"object {self.obj.name!r} is labelled with {list(self.obj.class_names)} but materials="
+                f"{list(self.class_names)}: build the object with class_names=${{materials}}"
+            )
+        self.rig = SimRig(
+            self.obj,
+            fingers=self.fingers,
+            axis=self.rotation_axis,
+            speed_deg_s=self.rotation_speed,
+            wobble_deg=self.wobble_deg,
+            press_depth_m={f: v / 1000.0 for f, v in self.firmness_mm.items()},
+            period_s=self.gait_period_s,
+            contact_fraction=self.contact_fraction,
+            seed=self.seed,
+        )
+        self.rig.open()
+        self.renderers = {
+            f: DigitRenderer(self.obj, seed=finger_seed(self.seed, f), **self.tactile_options)
+            for f in self.fingers
+        }
+        if self.camera_enabled:
+            options = dict(self.rgbd_options)
+            distance = float(options.pop("distance", 0.35))
+            from neuralfeels_sem.sim.camera_renderer import front_left_camera_pose
+
+            self.camera_renderer = CameraRenderer(
+                self.obj,
+                world_T_camera=front_left_camera_pose(self.rig.centre, distance),
+                seed=self.seed,
+                **options,
+            )
+
+    def close(self) -> None:
+        for renderer in self.renderers.values():
+            renderer.close()
+        if self.camera_renderer is not None:
+            self.camera_renderer.close()
+        self.renderers, self.camera_renderer, self.rig = {}, None, None
+
+    def frames(self) -> Iterator[Frame]:
+        self.open()
+        for index in range(len(self)):
+            yield self.frame_at(index)
+
+    def frame_at(self, index: int) -> Frame:
+        """Frame `index` (call with non-decreasing indices: the fingers move incrementally)."""
+        self.open()
+        t = index / self.fps
+        state = self.rig.state_at(t)
+        tactile = {}
+        for finger, renderer in self.renderers.items():
+            world_T_sensor = state.world_T_sensor[finger]
+            render = renderer.render(state.world_T_object, world_T_sensor)
+            tactile[finger] = TactileReading(
+                finger=finger,
+                image=render.image,
+                world_T_sensor=world_T_sensor,
+                intrinsics=DIGIT_INTRINSICS,
+                background=renderer.background_image,
+                gt_contact_mask=render.contact_mask,
+                gt_depth=render.depth,
+                gt_material=render.material,
+            )
+        camera = None
+        if self.camera_renderer is not None:
+            camera = self.camera_renderer.render(
+                state.world_T_object, occluders=self.rig.scene.hand_meshes()
+            )
+        return Frame(
+            index=index,
+            time_s=t,
+            world_T_object=state.world_T_object.copy(),
+            tactile=tactile,
+            camera=camera,
+            gt_world_T_object=state.world_T_object.copy(),
+            joint_positions=state.joint_positions,
+        )

@@ -1,0 +1,194 @@
+"""task=collect_tactile: a labelled tactile material data set from the simulated DIGITs.
+
+Writes `<root>/<sensor>/<material>/<id>.png` (ImageFolder style, the layout a user's real
+DIGIT data would use), `<root>/_backgrounds/<sensor>.png` (each sensor's no-contact
+frame, for the contact gate) and `<root>/manifest.json` (counts per sensor and class,
+seeds, objects, renderer settings, command).
+
+Balanced by construction: for every sensor (finger) and material it presses that
+finger's DIGIT (same renderer seed as in sensor=sim, so the same background) against
+random points of that material on primitives and library objects, with a press depth
+drawn around the finger's firmness (the thumb presses less), a random roll about the
+sensor axis and a small tilt; a frame is kept when its contact is large enough and at
+least `min_purity` of the contact pixels are that material.
+"""
+
+from __future__ import annotations
+
+import json
+import logging
+import sys
+from collections import defaultdict
+from pathlib import Path
+
+import cv2
+import numpy as np
+from hydra.utils import to_absolute_path
+from omegaconf import DictConfig, OmegaConf
+from tqdm import tqdm
+
+from neuralfeels_sem.errors import ConfigError, DataError
+from neuralfeels_sem.sensors.sim.sim_sensor import finger_seed
+from neuralfeels_sem.sim.digit_geometry import MAX_PENETRATION_M
+from neuralfeels_sem.sim.touch_sources import library_objects, primitive_objects, sample_touch
+from neuralfeels_sem.utils.geometry import rotation_matrix
+
+log = logging.getLogger(__name__)
+TRIES_PER_SAMPLE = 40
+BACKGROUND_DIR = "_backgrounds"
+
+
+def _tilted(normal: np.ndarray, max_tilt_rad: float, rng: np.random.Generator) -> np.ndarray:
+    axis = np.cross(normal, rng.normal(size=3))
+    return rotation_matrix(axis, rng.uniform(0.0, max_tilt_rad)) @ normal
+
+
+def _prepare_root(root: Path, overwrite: bool) -> None:
+    if root.exists() and not root.is_dir():
+        raise DataError(f"task.root={root} is a file: pass a folder")
+    if root.is_dir() and any(root.iterdir()) and not overwrite:
+        raise DataError(
+            f"task.root={root} is not empty: pass task.overwrite=true or another task.root"
+        )
+    try:
+        root.mkdir(parents=True, exist_ok=True)
+    except OSError as exc:
+        raise DataError(
+            f"task.root={root} cannot be created ({exc.strerror}): pick a writable folder"
+        ) from exc
+
+
+def run(cfg: DictConfig) -> dict:
+    from neuralfeels_sem.sim.tactile_renderer import DigitRenderer, pose_pressing
+
+    task = cfg.task
+    class_names = list(cfg.materials)
+    root = Path(to_absolute_path(str(task.root)))
+    sensors = list(task.sensors)
+    per_group = int(task.samples_per_class_per_sensor)
+    seed = int(task.seed)
+    tactile_options = OmegaConf.to_container(task.tactile, resolve=True)
+    _prepare_root(root, bool(task.overwrite))
+
+    sources = primitive_objects(class_names) + library_objects(
+        list(task.library_objects), class_names
+    )
+    by_class = {
+        c: [i for i, o in enumerate(sources) if (o.face_labels == c).any()]
+        for c in range(len(class_names))
+    }
+    missing = [class_names[c] for c, idx in by_class.items() if not idx]
+    if missing:
+        raise ConfigError(
+            f"no object has material(s) {missing}: check materials= and task.library_objects"
+        )
+
+    # Assign every (sensor, class, k) sample to a source object up front, so that each
+    # object's renderers are built once and every sample is repeatable from the seed.
+    rng = np.random.default_rng(seed)
+    jobs: dict[int, list[tuple[str, int, int]]] = defaultdict(list)
+    for sensor in sensors:
+        for c in range(len(class_names)):
+            for k in range(per_group):
+                jobs[int(rng.choice(by_class[c]))].append((sensor, c, k))
+
+    counts = {s: dict.fromkeys(class_names, 0) for s in sensors}
+    used = {s: {m: defaultdict(int) for m in class_names} for s in sensors}
+    rejected = 0
+    (root / BACKGROUND_DIR).mkdir(exist_ok=True)
+    for sensor in sensors:
+        for material in class_names:
+            (root / sensor / material).mkdir(parents=True, exist_ok=True)
+    firmness = {f: float(v) / 1000.0 for f, v in task.firmness_mm.items()}
+    max_tilt = np.deg2rad(float(task.max_tilt_deg))
+    progress = tqdm(total=sum(len(j) for j in jobs.values()), desc="collect_tactile", unit="img")
+    for source_index in sorted(jobs):
+        obj = sources[source_index]
+        renderers = {
+            s: DigitRenderer(obj, seed=finger_seed(seed, s), **tactile_options) for s in sensors
+        }
+        try:
+            for sensor, c, k in jobs[source_index]:
+                sample_rng = np.random.default_rng(
+                    [seed, source_index, sensors.index(sensor), c, k]
+                )
+                for _ in range(TRIES_PER_SAMPLE):
+                    touch = sample_touch(obj, c, sample_rng)
+                    mean = firmness.get(sensor, 0.0015)
+                    press = float(
+                        np.clip(
+                            sample_rng.normal(mean, float(task.firmness_spread) * mean),
+                            2e-4,
+                            MAX_PENETRATION_M * 0.95,
+                        )
+                    )
+                    pose = pose_pressing(
+                        touch.point,
+                        _tilted(touch.normal, max_tilt, sample_rng),
+                        press,
+                        sample_rng.uniform(0, 2 * np.pi),
+                    )
+                    render = renderers[sensor].render(np.eye(4), pose)
+                    contact = int(render.contact_mask.sum())
+                    purity = (
+                        float((render.material[render.contact_mask] == c).mean())
+                        if contact
+                        else 0.0
+                    )
+                    if contact >= int(task.min_contact_px) and purity >= float(task.min_purity):
+                        break
+                    rejected += 1
+                else:
+                    raise DataError(
+                        f"could not get a clean {class_names[c]} touch on {obj.name} for {sensor} in "
+                        f"{TRIES_PER_SAMPLE} tries: lower task.min_purity or task.min_contact_px"
+                    )
+                path = root / sensor / class_names[c] / f"{k:05d}.png"
+                cv2.imwrite(str(path), cv2.cvtColor(render.image, cv2.COLOR_RGB2BGR))
+                counts[sensor][class_names[c]] += 1
+                used[sensor][class_names[c]][obj.name] += 1
+                progress.update(1)
+            for sensor, renderer in renderers.items():
+                background = root / BACKGROUND_DIR / f"{sensor}.png"
+                if not background.exists():
+                    cv2.imwrite(
+                        str(background), cv2.cvtColor(renderer.background_image, cv2.COLOR_RGB2BGR)
+                    )
+        finally:
+            for renderer in renderers.values():
+                renderer.close()
+    progress.close()
+
+    manifest = {
+        "layout": "<root>/<sensor>/<material>/<id>.png; backgrounds in _backgrounds/<sensor>.png",
+        "source": "sim",
+        "classes": class_names,
+        "sensors": sensors,
+        "counts": counts,
+        "total": int(sum(sum(v.values()) for v in counts.values())),
+        "rejected_renders": rejected,
+        "objects": {s: {m: dict(v) for m, v in used[s].items()} for s in sensors},
+        "seed": seed,
+        "renderer_seeds": {s: finger_seed(seed, s) for s in sensors},
+        "renderer": tactile_options,
+        "firmness_mm": dict(task.firmness_mm),
+        "firmness_spread": float(task.firmness_spread),
+        "max_tilt_deg": float(task.max_tilt_deg),
+        "min_purity": float(task.min_purity),
+        "min_contact_px": int(task.min_contact_px),
+        "image_size": [320, 240],
+        "command": " ".join(["python", "run.py", *sys.argv[1:]]),
+    }
+    (root / "manifest.json").write_text(json.dumps(manifest, indent=2))
+    log.info(
+        "wrote %d tactile images to %s (%d renders rejected by the purity gate)",
+        manifest["total"],
+        root,
+        rejected,
+    )
+    return {
+        "root": str(root),
+        "total": manifest["total"],
+        "counts": counts,
+        "rejected_renders": rejected,
+    }
