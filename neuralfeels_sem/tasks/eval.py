@@ -1,0 +1,100 @@
+"""task=eval: recompute metrics and pictures of a finished (or killed) mapping run.
+
+    python run.py task=eval run_dir=outputs/map/plushie/sim/2026-11-21_10-00-00
+
+Loads the run's own config and its checkpoint.pt, scores the field with the current
+`eval.*` settings and writes metrics.json, material_mesh.ply and the pictures into
+`<run_dir>/eval/`. Nothing is re-run: the sensor is not opened.
+"""
+
+from __future__ import annotations
+
+import json
+import logging
+from pathlib import Path
+
+from hydra.utils import instantiate
+from omegaconf import DictConfig, OmegaConf
+
+from neuralfeels_sem.errors import ConfigError, DataError
+from neuralfeels_sem.mapping.checkpoint import load_checkpoint
+from neuralfeels_sem.tasks.map import (
+    BOUND_MARGIN,
+    _json_default,
+    build_mapper,
+    build_scorer,
+    model_config,
+)
+from neuralfeels_sem.tasks.map_outputs import print_summary, write_pictures
+from neuralfeels_sem.utils.device import resolve_device
+
+log = logging.getLogger(__name__)
+
+
+def load_run_config(run_dir: Path) -> DictConfig:
+    config_file = run_dir / ".hydra" / "config.yaml"
+    if not run_dir.is_dir():
+        raise DataError(f"run_dir={run_dir} does not exist; pass the directory of a task=map run")
+    if not config_file.is_file() or not (run_dir / "checkpoint.pt").is_file():
+        raise DataError(
+            f"run_dir={run_dir} is not a mapping run (needs .hydra/config.yaml and checkpoint.pt); "
+            "pass the directory a task=map run wrote"
+        )
+    run_cfg = OmegaConf.load(config_file)
+    if run_cfg.get("task", {}).get("name") != "map":
+        raise DataError(f"run_dir={run_dir} was written by task={run_cfg.task.name}, not task=map")
+    return run_cfg
+
+
+def run(cfg: DictConfig) -> dict:
+    if not cfg.run_dir:
+        raise ConfigError("task=eval needs run_dir=PATH (the directory of a task=map run)")
+    run_dir = Path(cfg.run_dir)
+    run_cfg = load_run_config(run_dir)
+    out = run_dir / "eval"
+    out.mkdir(exist_ok=True)
+    obj = instantiate(run_cfg.object)
+    class_names = list(run_cfg.materials)
+    bound = BOUND_MARGIN * obj.bounds_radius
+    mapper = build_mapper(run_cfg, len(class_names), bound, resolve_device(cfg.device))
+    resumed = load_checkpoint(run_dir / "checkpoint.pt", mapper, model_config(run_cfg))
+    # The current eval settings (so a run can be re-scored more finely), the run's own object.
+    scorer = build_scorer(OmegaConf.merge(run_cfg, {"eval": cfg.eval}), obj)
+    scorer.load_state(resumed["extra"].get("scorer", {}))
+    final, mesh = scorer.field_metrics(mapper.field, bound)
+    if mesh is not None:
+        mesh.export(out / "material_mesh.ply")
+    previous = {}
+    if (run_dir / "metrics.json").is_file():
+        previous = json.loads((run_dir / "metrics.json").read_text())
+    metrics = {
+        **previous,
+        **{
+            k: final.get(k)
+            for k in (
+                "matching_pct",
+                "matching_pct_image",
+                "matching_per_class",
+                "fscore_5mm",
+                "chamfer_mm",
+                "fscore_curve",
+            )
+        },
+        "matching_curve": scorer.curve,
+        "classifier_accuracy": scorer.classifier_accuracy(),
+        "trained_on": mapper.trained_on,
+        "evaluated_checkpoint_frame": resumed["frame_index"],
+    }
+    metrics.setdefault("baseline", {})
+    metrics.setdefault(
+        "config",
+        {"object": run_cfg.object.name, "sensor": run_cfg.sensor.name, "seed": int(run_cfg.seed)},
+    )
+    metrics.setdefault("frames", resumed["frame_index"] + 1)
+    metrics.setdefault("wall_s", 0.0)
+    metrics.setdefault("realtime_factor", None)
+    (out / "metrics.json").write_text(json.dumps(metrics, indent=2, default=_json_default))
+    if cfg.viz.plots:
+        write_pictures(scorer, metrics, run_dir / "progression", out, int(cfg.viz.dpi))
+    print_summary(metrics, out)
+    return metrics

@@ -1,0 +1,245 @@
+"""task=map (the default): stream frames, classify touches, train the field online, score it.
+
+    python run.py sensor=sim object=plushie
+    python run.py object=patched_toy mapping.resume=outputs/map/.../checkpoint.pt
+
+Writes the run-output contract of DESIGN.md into the run directory: metrics.json,
+material_mesh.ply, matching_curve.png, material_maps.png, progression.png,
+checkpoint.pt (every mapping.checkpoint_every frames and at the end) and touches.csv.
+"""
+
+from __future__ import annotations
+
+import csv
+import json
+import logging
+import time
+from pathlib import Path
+
+import numpy as np
+from hydra.utils import instantiate
+from omegaconf import DictConfig, OmegaConf
+from tqdm import tqdm
+
+from neuralfeels_sem.errors import NoDataError
+from neuralfeels_sem.mapping.checkpoint import load_checkpoint, save_checkpoint
+from neuralfeels_sem.sensors.factory import build_sensor
+from neuralfeels_sem.tasks.map_metrics import RunScorer
+from neuralfeels_sem.tasks.map_outputs import print_summary, write_pictures
+from neuralfeels_sem.tasks.runner import output_dir
+from neuralfeels_sem.utils.device import resolve_device
+
+log = logging.getLogger(__name__)
+
+# Margin around the object's bounding sphere for the field's domain: the truncation band
+# and free-space samples just outside the surface must stay inside the hash grid.
+BOUND_MARGIN = 1.15
+
+
+def build_scorer(cfg: DictConfig, obj) -> RunScorer:
+    e = cfg.eval
+    return RunScorer(
+        obj,
+        num_surface_samples=e.num_surface_samples,
+        image_views=e.image_views,
+        image_size=e.image_size,
+        image_elevation_deg=e.image_elevation_deg,
+        fscore_thresholds_mm=list(e.fscore_thresholds_mm),
+        shape_samples=e.shape_samples,
+        mesh_resolution=e.mesh_resolution,
+        seed=e.seed,
+    )
+
+
+def build_mapper(cfg: DictConfig, num_classes: int, bound: float, device):
+    field = instantiate(cfg.model, bound=bound)
+    optimizer_factory = instantiate(cfg.mapping.optimizer)
+    mapper = instantiate(
+        cfg.mapping.mapper,
+        field=field,
+        optimizer_factory=optimizer_factory,
+        num_classes=num_classes,
+        seed=cfg.seed,
+        device=device,
+    )
+    return mapper
+
+
+def model_config(cfg: DictConfig) -> dict:
+    return OmegaConf.to_container(cfg.model, resolve=True)
+
+
+def run(cfg: DictConfig) -> dict:
+    out = output_dir()
+    class_names = list(cfg.materials)
+    obj = instantiate(cfg.object)
+    sensor = build_sensor(cfg.sensor, obj, class_names)
+    classifier = instantiate(cfg.classifier)
+    device = resolve_device(cfg.device)
+    bound = BOUND_MARGIN * obj.bounds_radius
+    mapper = build_mapper(cfg, len(class_names), bound, device)
+    scorer = build_scorer(cfg, obj)
+    snapshots_dir = out / "progression"
+    snapshots_dir.mkdir(exist_ok=True)
+
+    baseline, _ = scorer.field_metrics(mapper.field, bound)
+    log.info(
+        "untrained field (baseline): matching %.1f%%", baseline.get("matching_pct", float("nan"))
+    )
+
+    start_index = -1
+    if cfg.mapping.resume:
+        resumed = load_checkpoint(cfg.mapping.resume, mapper, model_config(cfg))
+        start_index = resumed["frame_index"]
+        scorer.load_state(resumed["extra"].get("scorer", {}))
+        log.info("resumed from %s after frame %d", cfg.mapping.resume, start_index)
+
+    every_k = int(cfg.eval.every_k_frames)
+    checkpoint_every = int(cfg.mapping.checkpoint_every)
+    checkpoint_path = out / "checkpoint.pt"
+    processed = 0
+    first_time = last_time = None
+    frame_period = 0.0
+    last_index = start_index
+    wall_start = time.perf_counter()
+    with sensor:
+        total = len(sensor) if len(sensor) > 0 else None
+        frame_period = float(getattr(sensor, "frame_period_s", 0.0))
+        snapshot_every = max(1, (total or 100) // max(1, int(cfg.viz.progression_snapshots)))
+        bar = tqdm(total=total, desc="map", unit="frame", dynamic_ncols=True)
+        for frame in sensor.frames():
+            bar.update(1)
+            if frame.index <= start_index:
+                continue  # already in the checkpoint
+            readings = list(frame.tactile.values())
+            labels = (
+                {r.finger: lab for r, lab in zip(readings, classifier.classify(readings))}
+                if readings
+                else {}
+            )
+            scorer.log_touches(frame, labels)
+            mapper.add_frame(frame, labels)
+            processed += 1
+            last_index = frame.index
+            first_time = frame.time_s if first_time is None else first_time
+            last_time = frame.time_s
+            is_last = total is not None and frame.index == total - 1
+            if frame.index % every_k == 0 or is_last:
+                pct = scorer.score(mapper.field, frame.index, frame.time_s)
+                elapsed = time.perf_counter() - wall_start
+                bar.set_postfix(
+                    t=f"{frame.time_s:.1f}s",
+                    fps=f"{processed / max(elapsed, 1e-9):.2f}",
+                    match="n/a" if pct is None else f"{pct:.1f}%",
+                )
+            if frame.index % snapshot_every == 0 or is_last:
+                take_snapshot(scorer, mapper.field, frame.time_s, frame.index, snapshots_dir)
+            if checkpoint_every and frame.index % checkpoint_every == 0:
+                save_checkpoint(
+                    checkpoint_path,
+                    mapper,
+                    frame.index,
+                    {"scorer": scorer.state()},
+                    model_config(cfg),
+                )
+        bar.close()
+    wall_s = time.perf_counter() - wall_start
+
+    trained_on = mapper.trained_on
+    if (
+        trained_on["optimizer_steps"] == 0
+        or (trained_on["camera_points"] + trained_on["tactile_points"]) == 0
+    ):
+        raise NoDataError(
+            f"the field received no data in {trained_on['frames']} frames (no camera or tactile points); "
+            "check that the object is in view and the fingers touch it (sensor config)"
+        )
+    save_checkpoint(
+        checkpoint_path, mapper, last_index, {"scorer": scorer.state()}, model_config(cfg)
+    )
+    if not scorer.curve or scorer.curve[-1][0] != last_index:
+        scorer.score(mapper.field, last_index, last_time or 0.0)
+
+    final, mesh = scorer.field_metrics(mapper.field, bound)
+    if mesh is not None:
+        mesh.export(out / "material_mesh.ply")
+    sensor_time = (last_time - first_time + frame_period) if first_time is not None else 0.0
+    metrics = {
+        "matching_pct": final.get("matching_pct"),
+        "matching_pct_image": final.get("matching_pct_image"),
+        "matching_per_class": final.get("matching_per_class"),
+        "matching_curve": scorer.curve,
+        "fscore_5mm": final.get("fscore_5mm"),
+        "chamfer_mm": final.get("chamfer_mm"),
+        "fscore_curve": final.get("fscore_curve"),
+        "classifier_accuracy": scorer.classifier_accuracy(),
+        "frames": processed,
+        "frames_total": last_index + 1,
+        "wall_s": wall_s,
+        "sensor_time_s": sensor_time,
+        "realtime_factor": sensor_time / wall_s if wall_s > 0 else None,
+        "baseline": {
+            k: baseline.get(k)
+            for k in ("matching_pct", "matching_pct_image", "fscore_5mm", "chamfer_mm")
+        },
+        "trained_on": trained_on,
+        "notes": scorer.notes + ([final["shape_note"]] if "shape_note" in final else []),
+        "config": {
+            "object": cfg.object.name,
+            "sensor": cfg.sensor.name,
+            "model": OmegaConf.to_container(cfg.model, resolve=True),
+            "classifier": cfg.classifier.get("_target_"),
+            "fingers": list(cfg.sensor.get("fingers", [])) if "fingers" in cfg.sensor else None,
+            "seed": int(cfg.seed),
+            "resumed_from": cfg.mapping.resume,
+        },
+    }
+    (out / "metrics.json").write_text(json.dumps(metrics, indent=2, default=_json_default))
+    write_touches(scorer.touch_log, class_names, out / "touches.csv")
+    if cfg.viz.plots:
+        write_pictures(scorer, metrics, snapshots_dir, out, int(cfg.viz.dpi))
+    print_summary(metrics, out)
+    return metrics
+
+
+def take_snapshot(
+    scorer: RunScorer, field, time_s: float, frame_index: int, directory: Path
+) -> None:
+    """Progression snapshots go to disk at once, so a resumed run still has the early ones."""
+    if scorer.images is None:
+        return
+    scorer.snapshot(field, time_s)
+    _, maps = scorer.snapshots.pop()
+    np.savez_compressed(
+        directory / f"{frame_index:06d}.npz",
+        time_s=time_s,
+        gt=maps["gt"],
+        pred=maps["pred"],
+        diff=maps["diff"],
+        shade=maps["shade"],
+        matching_pct_image=maps["matching_pct_image"],
+    )
+
+
+def write_touches(touch_log: list[list], class_names: list[str], path: Path) -> None:
+    with path.open("w", newline="") as f:
+        writer = csv.writer(f)
+        writer.writerow(["frame", "finger", "predicted", "ground_truth", "confidence"])
+        for frame, finger, predicted, gt, confidence in touch_log:
+            writer.writerow(
+                [
+                    frame,
+                    finger,
+                    class_names[predicted] if predicted >= 0 else "none",
+                    class_names[gt] if gt >= 0 else "unknown",
+                    f"{confidence:.3f}",
+                ]
+            )
+
+
+def _json_default(value):
+    if isinstance(value, np.generic):
+        return value.item()
+    if isinstance(value, np.ndarray):
+        return value.tolist()
+    raise TypeError(f"{type(value).__name__} is not JSON serialisable")
