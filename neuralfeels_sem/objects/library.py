@@ -20,8 +20,6 @@ from neuralfeels_sem.objects.procedural import RECIPES
 from neuralfeels_sem.objects.regions import label_faces
 from neuralfeels_sem.objects.sdf import mesh_sdf_with_faces
 
-TARGET_FACES = 20_000
-
 
 def list_objects() -> dict[str, str]:
     """Shipped object names -> one-line descriptions."""
@@ -32,7 +30,7 @@ def list_objects() -> dict[str, str]:
 def _generate(name: str) -> tuple[np.ndarray, np.ndarray, np.ndarray, str]:
     """(vertices, faces, per-face material names, base material), centred on the box centre."""
     recipe = RECIPES[name]()
-    mesh = mesh_sdf_with_faces(recipe.shape, recipe.lower, recipe.upper, TARGET_FACES)
+    mesh = mesh_sdf_with_faces(recipe.shape, recipe.lower, recipe.upper, recipe.target_faces)
     names = label_faces(mesh, recipe.base_material, recipe.regions, recipe.seam_width)
     vertices = mesh.vertices - mesh.bounds.mean(axis=0)
     for array in (vertices, mesh.faces, names):

@@ -62,5 +62,7 @@ class MaterialObject:
 
     def labels_at(self, points: np.ndarray) -> np.ndarray:
         """Ground-truth label of the closest face to each (N,3) object-frame point."""
-        _, _, faces = trimesh.proximity.closest_point(self.mesh, points)
+        from neuralfeels_sem.objects.proximity import closest_faces  # scipy, only when used
+
+        faces, _ = closest_faces(self.mesh, points)
         return self.face_labels[faces]

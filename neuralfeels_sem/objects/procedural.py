@@ -30,6 +30,7 @@ class Recipe:
     base_material: str
     regions: list[Region] = field(default_factory=list)
     seam_width: float = SEAM
+    target_faces: int = 20_000  # mesh resolution (library.py picks the grid spacing)
 
 
 def _bottom(z: float) -> Region:
@@ -175,9 +176,18 @@ def _yarn_offset(radius: float, wavelength: float, amplitude: float, seed: int =
 
 def yarn_ball() -> Recipe:
     radius = 0.034
-    shape = S.displaced(S.sphere((0.0, 0.0, 0.0), radius), _yarn_offset(radius, 0.005, 0.0008))
+    shape = S.displaced(
+        S.sphere((0.0, 0.0, 0.0), radius), _yarn_offset(radius, 0.005, 0.0008), 0.0008
+    )
     return Recipe(
-        "yarn_ball", "ball of wound yarn, 7 cm", shape, (-0.04,) * 3, (0.04,) * 3, "fabric"
+        "yarn_ball",
+        "ball of wound yarn, 7 cm",
+        shape,
+        (-0.04,) * 3,
+        (0.04,) * 3,
+        "fabric",
+        # Finer grid (1.3 mm) so that each 5 mm strand spans four cells.
+        target_faces=28_000,
     )
 
 

@@ -123,9 +123,20 @@ def smooth_difference(a: SDF, b: SDF, k: float) -> SDF:
     return lambda p: -_smin(-a(p), b(p), k)
 
 
-def displaced(base: SDF, offset: Callable[[np.ndarray], np.ndarray]) -> SDF:
-    """Move the surface outwards by offset(p) metres (small, smooth offsets only)."""
-    return lambda p: base(p) - offset(p)
+def displaced(base: SDF, offset: Callable[[np.ndarray], np.ndarray], max_offset: float) -> SDF:
+    """Move the surface outwards by offset(p) in [0, max_offset] metres (small, smooth).
+
+    The offset is only evaluated within 4 mm of the base surface: farther out it
+    cannot change the sign, so the zero level set and the cells around it are exact.
+    """
+
+    def f(p: np.ndarray) -> np.ndarray:
+        d = base(p)
+        near = np.abs(d) < max_offset + 0.004
+        d[near] -= offset(p[near])
+        return d
+
+    return f
 
 
 def mesh_sdf(

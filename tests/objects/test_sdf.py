@@ -74,3 +74,11 @@ def test_target_faces_sets_the_resolution() -> None:
     assert len(S.mesh_sdf_with_faces(f, lo, hi, 100).faces) == len(
         S.mesh_sdf(f, lo, hi, 0.002).faces
     )
+
+
+def test_displaced_offsets_near_the_surface_only() -> None:
+    base = S.sphere((0, 0, 0), 0.03)
+    f = S.displaced(base, lambda p: np.full(len(p), 0.001), max_offset=0.001)
+    p = np.array([[0.031, 0.0, 0.0], [0.0, 0.0, 0.0], [0.02, 0.0, 0.0]])
+    # Near the surface: moved out by 1 mm; far inside: untouched (sign is all that matters there).
+    np.testing.assert_allclose(f(p), [0.0, -0.03, -0.01], atol=1e-15)
