@@ -19,6 +19,9 @@ from neuralfeels_sem.viz.mesh_render import DepthRenderer, orbit_views
 from neuralfeels_sem.viz.palette import BACKGROUND
 
 FOV_Y_DEG = 40.0
+# Rendered surface points lie within ~0.2 mm of the mesh (depth-buffer precision); beyond 1 mm
+# the nearest-face search double-checks with the exact query.
+RENDER_TOL_M = 1e-3
 
 
 class ImageMatcher:
@@ -73,7 +76,7 @@ class ImageMatcher:
                 )
                 # Snap to the surface (depth-buffer error is ~0.1 mm), so the point the predictor
                 # is asked at lies on the face that gives the pixel its ground-truth label.
-                faces, _, pts = closest_faces(mesh, seen)
+                faces, _, pts = closest_faces(mesh, seen, tol=RENDER_TOL_M)
                 self._pixels.append(np.flatnonzero(visible))
                 self.gt[v][visible] = self.obj.face_labels[faces]
                 # Lambert-like shading from the face normal, only for pictures.
