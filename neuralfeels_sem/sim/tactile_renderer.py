@@ -107,10 +107,10 @@ class DigitRenderer:
         seed: int = 0,
         texture_scale: float = 1.0,
         compliance: dict[str, float] | None = None,
-        light_gain: float = 260.0,
+        light_gain: float = 200.0,
         press_gain: float = 30.0,
         blur_px: float = 0.8,
-        soft_blur_px: float = 2.2,
+        soft_blur_px: float = 1.6,
     ) -> None:
         if (
             noise_std < 0

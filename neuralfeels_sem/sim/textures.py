@@ -5,7 +5,7 @@ metres, so the pattern is fixed to the object and moves with it. A DIGIT resolve
 75 um per pixel, so relief of a few to a few tens of micrometres with periods of 0.2-1 mm
 is what makes materials look like themselves through the gel:
 
-- fabric: plain weave of crossing threads (0.8 mm period) plus fuzz; soft.
+- fabric: plain weave of crossing threads (1 mm period) plus fuzz; soft.
 - wood: growth rings (distorted, asymmetric early/late wood) and long fibres along the
   grain axis (object z); stiff.
 - metal: fine brushed lines along the object x axis, very little relief; stiff, shiny.
@@ -106,7 +106,7 @@ class FabricTexture(MicroTexture):
     """Plain weave: warp and weft threads alternately over and under, plus fuzz."""
 
     name = "fabric"
-    period_m = 0.8e-3
+    period_m = 1.0e-3
     thread_height_m = 45e-6
     fuzz_m = 6e-6
 
@@ -121,10 +121,10 @@ class FabricTexture(MicroTexture):
         b = (-sn * s + c * t) / self.period_m
         ia, ib = np.floor(a), np.floor(b)
         # Thread cross-section: round, zero between threads.
-        prof_a, prof_b = np.sqrt(np.sin(np.pi * (a - ia))), np.sqrt(np.sin(np.pi * (b - ib)))
+        prof_a, prof_b = np.sin(np.pi * (a - ia)), np.sin(np.pi * (b - ib))
         # Over/under: extremal at the crossing centres, opposite for warp and weft.
-        warp = prof_b * (0.55 + 0.45 * np.cos(np.pi * (a - 0.5 + ib)))
-        weft = prof_a * (0.55 - 0.45 * np.cos(np.pi * (b - 0.5 + ia)))
+        warp = prof_b * (0.5 + 0.5 * np.cos(np.pi * (a - 0.5 + ib)))
+        weft = prof_a * (0.5 - 0.5 * np.cos(np.pi * (b - 0.5 + ia)))
         return np.maximum(warp, weft)
 
     def _relief(self, points: np.ndarray, normal: np.ndarray | None) -> np.ndarray:
@@ -148,13 +148,16 @@ class WoodTexture(MicroTexture):
     name = "wood"
     ring_period_m = 1.3e-3
     ring_height_m = 28e-6
-    fibre_height_m = 7e-6
+    fibre_height_m = 9e-6
 
     def __init__(self, seed: int = 0, scale: float = 1.0) -> None:
         super().__init__(seed, scale)
         # Pith off the object centre, so rings cross any surface at varied angles.
         self._centre = self._rng.uniform(-0.05, 0.05, 2).astype(np.float32)
-        self._distort = _Waves.random(self._rng, 4, (4e-3, 12e-3))
+        # Ring wobble and fibres vary only across the grain (x, y): wood is straight along z.
+        self._distort = _Waves.random(
+            self._rng, 4, (4e-3, 12e-3), plane_normal=np.array([0.0, 0.0, 1.0])
+        )
         self._fibres = _Waves.random(
             self._rng, 6, (0.15e-3, 0.4e-3), plane_normal=np.array([0.0, 0.0, 1.0])
         )
@@ -172,7 +175,7 @@ class MetalTexture(MicroTexture):
     """Fine brushed lines along the object x axis; almost flat."""
 
     name = "metal"
-    line_height_m = 2.5e-6
+    line_height_m = 6e-6
 
     def __init__(self, seed: int = 0, scale: float = 1.0) -> None:
         super().__init__(seed, scale)
@@ -188,7 +191,7 @@ class PlasticTexture(MicroTexture):
     """Smooth, with a faint moulded stipple: sparse rounded bumps."""
 
     name = "plastic"
-    bump_height_m = 9e-6
+    bump_height_m = 14e-6
 
     def __init__(self, seed: int = 0, scale: float = 1.0) -> None:
         super().__init__(seed, scale)
