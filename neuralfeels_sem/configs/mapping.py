@@ -1,0 +1,155 @@
+"""Schema for conf/mapping/: the online mapper, its optimiser, checkpoints and mesh export.
+
+The task builds the mapper as
+    instantiate(cfg.mapping.mapper)(field=field, optimizer_factory=instantiate(cfg.mapping.optimizer), device=device)
+(both nodes are `_partial_`, so composing and instantiating the config stays cheap).
+"""
+
+from __future__ import annotations
+
+from dataclasses import dataclass, field
+
+POSE_SOURCES = ("gt", "track", "track_known_shape")
+TACTILE_DEPTH_SOURCES = ("gt", "image")
+
+
+@dataclass
+class OptimizerConfig:
+    _target_: str = "torch.optim.Adam"
+    _partial_: bool = True
+    lr: float = 3.0e-3
+
+    def __post_init__(self) -> None:
+        if self.lr <= 0:
+            raise ValueError(f"mapping.optimizer.lr={self.lr} must be > 0")
+
+
+@dataclass
+class TactileDepthConfig:
+    _target_: str = "neuralfeels_sem.perception.tactile_depth.TactileDepth"
+    source: str = "gt"  # gt: simulator depth | image: background-difference estimate (real sensors)
+    contact_threshold: float = 12.0  # grey levels of change that count as contact
+    full_press_intensity: float = 60.0  # grey levels of change at the deepest press
+    blur_px: int = 7
+    min_contact_px: int = 150
+
+    def __post_init__(self) -> None:
+        if self.source not in TACTILE_DEPTH_SOURCES:
+            raise ValueError(
+                f"mapping.mapper.tactile_depth.source={self.source} must be one of {TACTILE_DEPTH_SOURCES}"
+            )
+        if not 0 < self.contact_threshold < self.full_press_intensity:
+            raise ValueError(
+                f"mapping.mapper.tactile_depth needs 0 < contact_threshold ({self.contact_threshold}) "
+                f"< full_press_intensity ({self.full_press_intensity})"
+            )
+        if self.blur_px < 1 or self.blur_px % 2 == 0:
+            raise ValueError(
+                f"mapping.mapper.tactile_depth.blur_px={self.blur_px} must be odd and >= 1"
+            )
+
+
+@dataclass
+class MapperConfig:
+    """Arguments of neuralfeels_sem.mapping.mapper.OnlineMapper (see its docstring)."""
+
+    _target_: str = "neuralfeels_sem.mapping.mapper.OnlineMapper"
+    _partial_: bool = True
+    num_classes: int = 4
+    steps_per_frame: int = 5
+    warmup_steps: int = 50  # steps on the first frame with data
+    camera_points_per_frame: int = 4096  # stored per camera keyframe
+    tactile_points_per_touch: int = 128  # stored per touch (with replacement for small patches)
+    camera_rays: int = 288  # per step, from the keyframe window
+    tactile_rays: int = 96  # per step, from all touches
+    band_samples: int = 5  # per ray, inside the truncation band
+    free_samples: int = 4  # per ray, in free space
+    material_points: int = 256  # per step, from all labelled touches
+    truncation: float = 0.005  # metres
+    camera_free_range: float = 0.05  # metres in front of the surface
+    tactile_free_range: float = 0.01
+    camera_weight: float = 1.0
+    tactile_weight: float = 1.0
+    sdf_weight: float = 1.0
+    freespace_weight: float = 1.0
+    eikonal_weight: float = 0.0
+    eikonal_points: int = 256
+    material_weight: float = 0.1
+    window_recent: int = 4
+    window_by_loss: int = 4
+    max_keyframes: int = 200
+    use_camera_mask: bool = True
+    seed: int = 0
+    tactile_depth: TactileDepthConfig = field(default_factory=TactileDepthConfig)
+
+    def __post_init__(self) -> None:
+        at_least = {
+            "num_classes": 2,
+            "steps_per_frame": 1,
+            "warmup_steps": 0,
+            "camera_points_per_frame": 1,
+            "tactile_points_per_touch": 1,
+            "camera_rays": 0,
+            "tactile_rays": 0,
+            "band_samples": 0,
+            "free_samples": 0,
+            "material_points": 0,
+            "eikonal_points": 0,
+            "window_recent": 1,
+            "window_by_loss": 0,
+            "max_keyframes": 1,
+        }
+        for name, low in at_least.items():
+            if getattr(self, name) < low:
+                raise ValueError(f"mapping.mapper.{name}={getattr(self, name)} must be >= {low}")
+        if self.camera_rays + self.tactile_rays == 0:
+            raise ValueError(
+                "mapping.mapper.camera_rays and tactile_rays are both 0; at least one must be >= 1"
+            )
+        if self.truncation <= 0:
+            raise ValueError(f"mapping.mapper.truncation={self.truncation} must be > 0")
+        for name in ("camera_free_range", "tactile_free_range"):
+            if getattr(self, name) < self.truncation:
+                raise ValueError(
+                    f"mapping.mapper.{name}={getattr(self, name)} must be >= truncation ({self.truncation})"
+                )
+        for name in (
+            "camera_weight",
+            "tactile_weight",
+            "sdf_weight",
+            "freespace_weight",
+            "eikonal_weight",
+            "material_weight",
+        ):
+            if getattr(self, name) < 0:
+                raise ValueError(f"mapping.mapper.{name}={getattr(self, name)} must be >= 0")
+        if self.max_keyframes <= self.window_recent:
+            raise ValueError(
+                f"mapping.mapper.max_keyframes={self.max_keyframes} must exceed window_recent ({self.window_recent})"
+            )
+
+
+@dataclass
+class MappingConfig:
+    pose: str = (
+        "gt"  # gt: the frame's pose | track, track_known_shape: pose tracking (not yet available)
+    )
+    checkpoint_every: int = 25  # frames between checkpoint.pt writes (0: only at the end)
+    resume: str | None = None  # a checkpoint.pt to continue a killed run from
+    mesh_resolution: int = 128  # marching-cubes grid per axis over the model's bound
+    optimizer: OptimizerConfig = field(default_factory=OptimizerConfig)
+    mapper: MapperConfig = field(default_factory=MapperConfig)
+
+    def __post_init__(self) -> None:
+        if self.pose not in POSE_SOURCES:
+            raise ValueError(f"mapping.pose={self.pose} must be one of {POSE_SOURCES}")
+        if self.checkpoint_every < 0:
+            raise ValueError(f"mapping.checkpoint_every={self.checkpoint_every} must be >= 0")
+        if not 16 <= self.mesh_resolution <= 1024:
+            raise ValueError(
+                f"mapping.mesh_resolution={self.mesh_resolution} must be in [16, 1024]"
+            )
+
+
+def register(cs) -> None:
+    cs.store(group="schema/mapping", name="online", node=MappingConfig)

@@ -1,0 +1,99 @@
+"""Checkpoints of an online mapping run: save atomically, load safely, resume exactly.
+
+A checkpoint holds the mapper's full state (field, optimiser, keyframes, touches,
+counters, RNG states), the index of the last frame it has seen, a signature of the
+field (class and parameter shapes) and the caller's `extra` dict of plain values. It is
+written to `<path>.tmp` and renamed over `path`, so a run killed mid-write keeps its
+previous checkpoint intact; it is read with `torch.load(weights_only=True)`.
+"""
+
+from __future__ import annotations
+
+import os
+from pathlib import Path
+
+import torch
+
+from neuralfeels_sem.errors import ConfigError, DataError
+from neuralfeels_sem.mapping.mapper import OnlineMapper
+
+FORMAT_VERSION = 1
+
+
+def field_signature(mapper: OnlineMapper) -> dict:
+    """Field class, class count and parameter shapes: what must match to resume."""
+    return {
+        "class": type(mapper.field).__qualname__,
+        "num_classes": mapper.num_classes,
+        "shapes": {k: list(v.shape) for k, v in mapper.field.state_dict().items()},
+    }
+
+
+def save_checkpoint(
+    path: str | Path,
+    mapper: OnlineMapper,
+    frame_index: int,
+    extra: dict | None = None,
+    model_config: dict | None = None,
+) -> None:
+    """Write `path` atomically. `extra` and `model_config` must hold plain values only."""
+    path = Path(path)
+    payload = {
+        "version": FORMAT_VERSION,
+        "frame_index": int(frame_index),
+        "signature": field_signature(mapper),
+        "model_config": model_config,
+        "mapper": mapper.state_dict(),
+        "extra": dict(extra or {}),
+    }
+    tmp = path.with_name(path.name + ".tmp")
+    path.parent.mkdir(parents=True, exist_ok=True)
+    with open(tmp, "wb") as f:
+        torch.save(payload, f)
+        f.flush()
+        os.fsync(f.fileno())
+    os.replace(tmp, path)
+
+
+def load_checkpoint(
+    path: str | Path, mapper: OnlineMapper, model_config: dict | None = None
+) -> dict:
+    """Restore `mapper` from `path`; returns {"frame_index": int, "extra": dict}.
+
+    Raises ConfigError when the checkpoint was written for a different model (field class,
+    class count, parameter shapes, or `model_config` when both sides give one).
+    """
+    path = Path(path)
+    if not path.is_file():
+        raise DataError(f"checkpoint {path} does not exist; check mapping.resume")
+    try:
+        payload = torch.load(path, map_location=mapper.device, weights_only=True)
+    except Exception as exc:  # truncated or foreign file: say which file, not a pickle trace
+        raise DataError(
+            f"checkpoint {path} is unreadable ({type(exc).__name__}); point mapping.resume at a good checkpoint.pt"
+        ) from exc
+    if not isinstance(payload, dict) or payload.get("version") != FORMAT_VERSION:
+        raise DataError(
+            f"checkpoint {path} is not a SemanticFeels mapper checkpoint (version {FORMAT_VERSION})"
+        )
+    saved, current = payload["signature"], field_signature(mapper)
+    if saved != current:
+        diff = [k for k in current if saved.get(k) != current[k]]
+        raise ConfigError(
+            f"checkpoint {path} was written for a different model ({', '.join(diff)} differ); resume with the model config it was trained with"
+        )
+    if (
+        model_config is not None
+        and payload["model_config"] is not None
+        and payload["model_config"] != model_config
+    ):
+        keys = sorted(
+            k
+            for k in set(model_config) | set(payload["model_config"])
+            if model_config.get(k) != payload["model_config"].get(k)
+        )
+        raise ConfigError(
+            f"checkpoint {path} was written with a different model config (model.{', model.'.join(keys)}); resume with the same model settings"
+        )
+    mapper.load_state_dict(payload["mapper"])
+    return {"frame_index": int(payload["frame_index"]), "extra": payload["extra"]}

@@ -1,0 +1,174 @@
+"""What the mapper remembers: camera keyframes (windowed) and every touch (replayed).
+
+Camera frames are many and redundant, so training uses a window: the most recent
+keyframes plus older ones drawn with probability proportional to their last loss (the
+frames the field explains worst, as in iSDF). Touches are sparse and carry the material
+labels, so every touch is kept and replayed for the whole run.
+
+All points are stored in the object frame, as float32 tensors on the mapper's device.
+"""
+
+from __future__ import annotations
+
+import torch
+
+
+def _check_points(points: torch.Tensor, name: str) -> None:
+    if points.ndim != 2 or points.shape[1] != 3:
+        raise ValueError(f"{name} must have shape (N, 3), got {tuple(points.shape)}")
+
+
+class KeyframeBuffer:
+    """Camera keyframes: object-frame surface points and the camera centre of each."""
+
+    def __init__(self, max_keyframes: int, window_recent: int, window_by_loss: int) -> None:
+        if max_keyframes < 1 or window_recent < 1 or window_by_loss < 0:
+            raise ValueError(
+                f"need max_keyframes >= 1, window_recent >= 1, window_by_loss >= 0; got "
+                f"{max_keyframes}, {window_recent}, {window_by_loss}"
+            )
+        self.max_keyframes = max_keyframes
+        self.window_recent = window_recent
+        self.window_by_loss = window_by_loss
+        self.points: list[torch.Tensor] = []
+        self.origins: list[torch.Tensor] = []  # (3,) camera centre per keyframe
+        self.frame_indices: list[int] = []
+        self.losses: list[float] = []
+
+    def __len__(self) -> int:
+        return len(self.points)
+
+    @property
+    def num_points(self) -> int:
+        return sum(int(p.shape[0]) for p in self.points)
+
+    def add(self, points: torch.Tensor, origin: torch.Tensor, frame_index: int) -> None:
+        _check_points(points, "keyframe points")
+        if origin.shape != (3,):
+            raise ValueError(f"keyframe origin must have shape (3,), got {tuple(origin.shape)}")
+        if points.shape[0] == 0:
+            return
+        # New keyframes start with the highest known loss so they are drawn soon.
+        self.points.append(points)
+        self.origins.append(origin)
+        self.frame_indices.append(int(frame_index))
+        self.losses.append(max(self.losses, default=1.0))
+        if len(self.points) > self.max_keyframes:
+            self._evict()
+
+    def _evict(self) -> None:
+        """Drop the best-explained keyframe outside the recent window."""
+        old = range(len(self.points) - self.window_recent)
+        drop = min(old, key=lambda i: self.losses[i])
+        for store in (self.points, self.origins, self.frame_indices, self.losses):
+            del store[drop]
+
+    def window(self, generator: torch.Generator) -> list[int]:
+        """Indices of the keyframes to train on: recent ones plus older ones drawn by loss."""
+        n = len(self.points)
+        recent = list(range(max(0, n - self.window_recent), n))
+        n_old = n - len(recent)
+        if n_old == 0 or self.window_by_loss == 0:
+            return recent
+        weights = torch.tensor(self.losses[:n_old], dtype=torch.float64).clamp_min(1e-12)
+        k = min(self.window_by_loss, n_old)
+        chosen = torch.multinomial(weights, k, replacement=False, generator=generator)
+        return sorted(int(i) for i in chosen) + recent
+
+    def update_losses(self, keyframe_ids: list[int], losses: list[float]) -> None:
+        for i, loss in zip(keyframe_ids, losses):
+            self.losses[i] = float(loss)
+
+    def state_dict(self) -> dict:
+        return {
+            "points": list(self.points),
+            "origins": list(self.origins),
+            "frame_indices": list(self.frame_indices),
+            "losses": list(self.losses),
+        }
+
+    def load_state_dict(self, state: dict, device: torch.device) -> None:
+        self.points = [p.to(device) for p in state["points"]]
+        self.origins = [o.to(device) for o in state["origins"]]
+        self.frame_indices = [int(i) for i in state["frame_indices"]]
+        self.losses = [float(v) for v in state["losses"]]
+
+
+class TouchBuffer:
+    """Every touch: a fixed number of contact points each, the sensor axis, label and weight.
+
+    Each touch stores exactly `points_per_touch` points (drawn with replacement when the
+    contact patch has fewer pixels), so uniform sampling over points is uniform over touches.
+    """
+
+    def __init__(self, device: torch.device) -> None:
+        self.device = device
+        self._points: list[torch.Tensor] = []
+        self._axes: list[torch.Tensor] = []
+        self._labels: list[torch.Tensor] = []
+        self._weights: list[torch.Tensor] = []
+        self._cat: dict[str, torch.Tensor] | None = None
+        self.num_touches = 0
+        self.num_labelled = 0
+
+    def add(self, points: torch.Tensor, axis: torch.Tensor, label: int, weight: float) -> None:
+        """`label` -1 keeps the touch for geometry only."""
+        _check_points(points, "touch points")
+        n = points.shape[0]
+        self._points.append(points)
+        self._axes.append(axis.reshape(1, 3).expand(n, 3).clone())
+        self._labels.append(torch.full((n,), int(label), dtype=torch.long, device=points.device))
+        self._weights.append(
+            torch.full((n,), float(weight), dtype=torch.float32, device=points.device)
+        )
+        self.num_touches += 1
+        self.num_labelled += int(label >= 0)
+        self._cat = None
+
+    def tensors(self) -> dict[str, torch.Tensor]:
+        """All touches concatenated: points, axes, labels, weights, and the labelled subset."""
+        if self._cat is None:
+            if self._points:
+                cat = {
+                    "points": torch.cat(self._points),
+                    "axes": torch.cat(self._axes),
+                    "labels": torch.cat(self._labels),
+                    "weights": torch.cat(self._weights),
+                }
+            else:
+                empty3 = torch.zeros(0, 3, device=self.device)
+                cat = {
+                    "points": empty3,
+                    "axes": empty3,
+                    "labels": torch.zeros(0, dtype=torch.long, device=self.device),
+                    "weights": torch.zeros(0, device=self.device),
+                }
+            labelled = cat["labels"] >= 0
+            cat["labelled_points"] = cat["points"][labelled]
+            cat["labelled_labels"] = cat["labels"][labelled]
+            cat["labelled_weights"] = cat["weights"][labelled]
+            self._cat = cat
+        return self._cat
+
+    @property
+    def num_points(self) -> int:
+        return sum(int(p.shape[0]) for p in self._points)
+
+    def state_dict(self) -> dict:
+        return {
+            "points": list(self._points),
+            "axes": list(self._axes),
+            "labels": list(self._labels),
+            "weights": list(self._weights),
+            "num_touches": self.num_touches,
+            "num_labelled": self.num_labelled,
+        }
+
+    def load_state_dict(self, state: dict) -> None:
+        self._points = [t.to(self.device) for t in state["points"]]
+        self._axes = [t.to(self.device) for t in state["axes"]]
+        self._labels = [t.to(self.device) for t in state["labels"]]
+        self._weights = [t.to(self.device) for t in state["weights"]]
+        self.num_touches = int(state["num_touches"])
+        self.num_labelled = int(state["num_labelled"])
+        self._cat = None

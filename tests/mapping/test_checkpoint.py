@@ -1,0 +1,113 @@
+"""Checkpoints: exact resume after a simulated kill, atomic writes, clear errors."""
+
+from __future__ import annotations
+
+import functools
+import random
+
+import numpy as np
+import pytest
+import torch
+
+from neuralfeels_sem.errors import ConfigError, DataError
+from neuralfeels_sem.mapping import checkpoint as checkpoint_module
+from neuralfeels_sem.mapping.checkpoint import load_checkpoint, save_checkpoint
+from neuralfeels_sem.mapping.mapper import OnlineMapper
+from tests.mapping.synthetic import small_field, sphere_frames
+
+FRAMES = sphere_frames(6, touches_per_frame=2)
+
+
+def make_mapper(init_seed: int = 0, log2_table_size: int = 12) -> OnlineMapper:
+    torch.manual_seed(init_seed)
+    return OnlineMapper(
+        small_field(log2_table_size=log2_table_size),
+        functools.partial(torch.optim.Adam, lr=3e-3),
+        num_classes=2,
+        steps_per_frame=2,
+        warmup_steps=4,
+        camera_rays=64,
+        tactile_rays=32,
+        material_points=32,
+        window_recent=2,
+        window_by_loss=1,
+        seed=3,
+    )
+
+
+def feed(mapper: OnlineMapper, frames) -> None:
+    for frame, labels in frames:
+        mapper.add_frame(frame, labels)
+
+
+def test_resume_after_kill_matches_uninterrupted_run(tmp_path) -> None:
+    reference = make_mapper()
+    feed(reference, FRAMES)
+
+    first = make_mapper()
+    feed(first, FRAMES[:3])
+    path = tmp_path / "checkpoint.pt"
+    save_checkpoint(path, first, frame_index=2, extra={"matching_curve": [[2, 0.2, 51.0]]})
+    del first
+    # A new process: different global RNG states and a differently initialised field.
+    torch.manual_seed(99)
+    random.seed(99)
+    np.random.seed(99)
+    resumed = make_mapper(init_seed=7)
+    info = load_checkpoint(path, resumed)
+    assert info == {"frame_index": 2, "extra": {"matching_curve": [[2, 0.2, 51.0]]}}
+    feed(resumed, FRAMES[info["frame_index"] + 1 :])
+
+    for (name, a), (_, b) in zip(
+        reference.field.state_dict().items(), resumed.field.state_dict().items()
+    ):
+        assert torch.equal(a, b), name
+    assert reference.trained_on == resumed.trained_on
+    ref_opt, res_opt = (
+        reference.optimizer.state_dict()["state"],
+        resumed.optimizer.state_dict()["state"],
+    )
+    for key in ref_opt:
+        assert torch.equal(ref_opt[key]["exp_avg_sq"], res_opt[key]["exp_avg_sq"])
+    assert reference.keyframes.losses == resumed.keyframes.losses
+
+
+def test_kill_during_write_keeps_the_last_good_checkpoint(tmp_path, monkeypatch) -> None:
+    mapper = make_mapper()
+    feed(mapper, FRAMES[:1])
+    path = tmp_path / "checkpoint.pt"
+    save_checkpoint(path, mapper, frame_index=0)
+    good = path.read_bytes()
+    feed(mapper, FRAMES[1:2])
+
+    def dies_half_way(obj, f, *args, **kwargs):
+        f.write(b"PK\x03\x04 half a zip")
+        raise KeyboardInterrupt  # the kill arrives mid-write
+
+    monkeypatch.setattr(checkpoint_module.torch, "save", dies_half_way)
+    with pytest.raises(KeyboardInterrupt):
+        save_checkpoint(path, mapper, frame_index=1)
+    monkeypatch.undo()
+    assert path.read_bytes() == good
+    assert load_checkpoint(path, make_mapper())["frame_index"] == 0
+
+
+def test_different_model_is_a_one_line_config_error(tmp_path) -> None:
+    path = tmp_path / "checkpoint.pt"
+    mapper = make_mapper()
+    feed(mapper, FRAMES[:1])
+    save_checkpoint(path, mapper, frame_index=0, model_config={"bound": 0.08})
+    with pytest.raises(ConfigError) as info:
+        load_checkpoint(path, make_mapper(log2_table_size=13))
+    assert "shapes" in str(info.value) and "\n" not in str(info.value)
+    with pytest.raises(ConfigError, match="model.bound"):
+        load_checkpoint(path, make_mapper(), model_config={"bound": 0.1})
+
+
+def test_missing_or_corrupt_checkpoint_is_a_data_error(tmp_path) -> None:
+    with pytest.raises(DataError, match="does not exist"):
+        load_checkpoint(tmp_path / "nope.pt", make_mapper())
+    bad = tmp_path / "bad.pt"
+    bad.write_bytes(b"not a checkpoint")
+    with pytest.raises(DataError, match="unreadable"):
+        load_checkpoint(bad, make_mapper())

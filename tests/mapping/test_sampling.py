@@ -1,0 +1,68 @@
+"""Ray samples: positions, signed distances and ranges are exactly what the contract says."""
+
+from __future__ import annotations
+
+import pytest
+import torch
+
+from neuralfeels_sem.mapping.sampling import random_indices, sample_along_rays, subsample
+
+
+def rays(r: int = 50) -> tuple[torch.Tensor, torch.Tensor, torch.Tensor]:
+    g = torch.Generator().manual_seed(1)
+    surface = torch.randn(r, 3, generator=g) * 0.05
+    direction = torch.nn.functional.normalize(torch.randn(r, 3, generator=g), dim=1)
+    length = torch.rand(r, generator=g) * 0.2 + 0.01
+    return surface, direction, length
+
+
+def test_samples_lie_on_their_rays_with_the_right_distances() -> None:
+    surface, direction, length = rays()
+    out = sample_along_rays(
+        surface, direction, length, 5, 4, 0.005, 0.05, torch.Generator().manual_seed(0)
+    )
+    assert len(out) == 50 * 10
+    torch.testing.assert_close(
+        out.x, surface[out.ray] - out.s.unsqueeze(1) * direction[out.ray], rtol=0, atol=1e-7
+    )
+    per_ray = out.s.reshape(50, 10)
+    assert torch.all(per_ray[:, 0] == 0)  # the surface sample
+    band = per_ray[:, 1:6]
+    assert band.abs().max() <= 0.005 and (band < 0).any() and (band > 0).any()
+    free = per_ray[:, 6:]
+    far = torch.clamp(length, max=0.05).clamp_min(0.005).unsqueeze(1)
+    assert torch.all(free >= 0.005) and torch.all(free <= far + 1e-7)
+    assert torch.equal(out.free.reshape(50, 10)[:, 6:], torch.ones(50, 4, dtype=torch.bool))
+    assert not out.free.reshape(50, 10)[:, :6].any()
+
+
+def test_sampling_is_repeatable_with_the_same_generator() -> None:
+    surface, direction, length = rays()
+    a = sample_along_rays(
+        surface, direction, length, 3, 3, 0.005, 0.05, torch.Generator().manual_seed(7)
+    )
+    b = sample_along_rays(
+        surface, direction, length, 3, 3, 0.005, 0.05, torch.Generator().manual_seed(7)
+    )
+    assert torch.equal(a.x, b.x)
+
+
+def test_bad_shapes_raise_value_error() -> None:
+    surface, direction, length = rays()
+    with pytest.raises(ValueError):
+        sample_along_rays(surface, direction[:3], length, 1, 1, 0.005, 0.05, torch.Generator())
+    with pytest.raises(ValueError):
+        sample_along_rays(surface, direction, length, 1, 1, 0.01, 0.005, torch.Generator())
+
+
+def test_subsample_and_random_indices() -> None:
+    g = torch.Generator().manual_seed(0)
+    keep = subsample(100, 10, g, replace_if_short=False)
+    assert len(keep) == 10 and len(set(keep.tolist())) == 10
+    assert torch.equal(subsample(5, 10, g, replace_if_short=False), torch.arange(5))
+    short = subsample(5, 10, g, replace_if_short=True)
+    assert len(short) == 10 and short.max() < 5
+    assert len(subsample(0, 10, g, replace_if_short=True)) == 0
+    idx = random_indices(7, 1000, g, torch.device("cpu"))
+    assert idx.min() >= 0 and idx.max() <= 6 and len(torch.unique(idx)) == 7
+    assert len(random_indices(0, 10, g, torch.device("cpu"))) == 0
