@@ -61,7 +61,7 @@ class RealSenseConfig:
     _target_: str = "neuralfeels_sem.sensors.real.realsense.RealSenseCamera"
     _convert_: str = "all"
     serial: str | None = None  # null: the first RealSense found
-    name: str = "front-left"
+    name: str = "front_left"
     width: int = 640
     height: int = 480
     fps: int = 30
@@ -183,7 +183,7 @@ class ReplaySensorConfig:
     recording: str | None = None  # a task=record directory, or a FeelSight log directory
     format: str = "native"  # native (task=record layout) or feelsight
     realtime: bool = False  # true: yield at the recorded timing; false: as fast as consumed
-    camera: str = "front-left"  # FeelSight camera to read
+    camera: str = "front-left"  # FeelSight camera to read (front-left, back-right, top-down, ...)
     max_frames: int | None = None
 
     def __post_init__(self) -> None:

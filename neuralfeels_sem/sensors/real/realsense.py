@@ -62,7 +62,7 @@ class RealSenseCamera:
     def __init__(
         self,
         serial: str | None = None,
-        name: str = "front-left",
+        name: str = "front_left",
         width: int = 640,
         height: int = 480,
         fps: int = 30,

@@ -102,7 +102,7 @@ def export_feelsight(frames: Iterable[Frame], out_dir: str | Path, total: int | 
             raise DataError(
                 f"frame {frame.index} has no camera image: FeelSight logs need one every frame"
             )
-        camera_name = camera_name or cam.name
+        camera_name = camera_name or cam.name.replace("_", "-")  # FeelSight names: front-left
         camera_intrinsics = camera_intrinsics or cam.intrinsics
         folder = out / "realsense" / camera_name
         _write_jpg(folder / "image" / f"{i}.jpg", cam.rgb)
@@ -165,6 +165,7 @@ class FeelSightReader:
         with open(pkl, "rb") as f:
             self.data = pickle.load(f)
         cams = self.data.get("realsense", {})
+        camera = camera.replace("_", "-")  # FeelSight spells cameras front-left; we say front_left
         if camera not in cams:
             raise DataError(
                 f"FeelSight log {self.path} has no camera {camera!r} (has {sorted(cams)}): set sensor.camera"
@@ -251,7 +252,7 @@ class FeelSightReader:
             mask=None
             if seg is None
             else seg > 191,  # 255 = object (127 marks the hand in NeuralFeels' sim)
-            name=self.camera,
+            name=self.camera.replace("-", "_"),
         )
         joints = self.joint_states[i] if i < len(self.joint_states) else None
         gt = (
