@@ -54,17 +54,18 @@ class DepthRenderer:
     def _open(self) -> None:
         import pyrender
 
+        # Shared with the sim renderers: its close() keeps the process-wide EGL display alive
+        # (pyrender's own delete() would terminate it under every other renderer).
+        from neuralfeels_sem.sim.pyrender_utils import LazyOffscreen, intrinsics_camera
+
         self._center = self.mesh.bounds.mean(axis=0)
         self._radius = float(np.linalg.norm(self.mesh.vertices - self._center, axis=1).max())
-        k = self.intrinsics
-        # pyrender samples pixel i at i + 0.5; OpenCV pixel centres are at integers.
-        camera = pyrender.IntrinsicsCamera(
-            k.fx, k.fy, k.cx + 0.5, k.cy + 0.5, znear=0.01, zfar=10.0
-        )
+        # intrinsics_camera moves the principal point by half a pixel (OpenCV pixel centres).
+        camera = intrinsics_camera(self.intrinsics, znear=0.01, zfar=10.0)
         self._scene = pyrender.Scene(bg_color=[0.0, 0.0, 0.0, 0.0], ambient_light=[1.0, 1.0, 1.0])
         self._scene.add(pyrender.Mesh.from_trimesh(self.mesh, smooth=False))
         self._camera_node = self._scene.add(camera, pose=np.eye(4))
-        self._renderer = pyrender.OffscreenRenderer(k.width, k.height)
+        self._renderer = LazyOffscreen(self.intrinsics.width, self.intrinsics.height)
 
     def render(self, object_T_camera: np.ndarray) -> np.ndarray:
         """(H, W) float32 depth in metres along the camera's +z; 0 where the mesh is not seen."""
@@ -81,12 +82,12 @@ class DepthRenderer:
             dist + 1.05 * self._radius,
         )
         self._scene.set_pose(self._camera_node, object_T_camera @ OPENGL_T_OPENCV)
-        depth = self._renderer.render(self._scene, flags=pyrender.RenderFlags.DEPTH_ONLY)
+        depth = self._renderer.get().render(self._scene, flags=pyrender.RenderFlags.DEPTH_ONLY)
         return np.asarray(depth, dtype=np.float32)
 
     def close(self) -> None:
         if self._renderer is not None:
-            self._renderer.delete()
+            self._renderer.close()
             self._renderer = None
 
     def __enter__(self) -> DepthRenderer:

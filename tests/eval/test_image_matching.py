@@ -114,3 +114,16 @@ def test_render_label_maps_one_off_call(sphere: MaterialObject) -> None:
     # Another seed turns the ring of views, so the pictures differ.
     other = render_label_maps(sphere, predict_by_y, views=2, size=64, seed=0)
     assert not np.array_equal(maps["gt"], other["gt"])
+
+
+def test_closing_a_depth_renderer_leaves_other_renderers_working() -> None:
+    # The sim's tactile and camera renderers share the process-wide EGL display with ours.
+    mesh = trimesh.creation.icosphere(subdivisions=2, radius=0.05)
+    intrinsics = Intrinsics.from_fov(48, 48, 40.0)
+    pose = orbit_views(np.zeros(3), 0.05, views=1)[0]
+    other = DepthRenderer(mesh, intrinsics)
+    before = other.render(pose)
+    with DepthRenderer(mesh, intrinsics) as renderer:
+        renderer.render(pose)
+    np.testing.assert_array_equal(other.render(pose), before)
+    other.close()
