@@ -1,0 +1,107 @@
+"""Schemas for conf/classifier/ and the classifier tasks (train_classifier, eval_classifier)."""
+
+from __future__ import annotations
+
+from dataclasses import dataclass, field
+
+from neuralfeels_sem.configs.root import TaskConfig
+
+
+@dataclass
+class EfficientNetClassifierConfig:
+    """MaterialClassifier arguments (perception/classifier/infer.py)."""
+
+    _target_: str = "neuralfeels_sem.perception.classifier.MaterialClassifier"
+    class_names: list[str] = field(default_factory=list)
+    checkpoint: str | None = None  # null = the shipped assets/classifier/classifier.pt
+    device: str = "auto"
+    min_confidence: float = 0.6
+    contact_threshold: float = 40.0
+    contact_min_area: float = 0.02
+    contact_blur_px: float = 3.0
+    background_dir: str | None = None
+    first_frame_background: bool = True
+    weights: str | None = (
+        None  # local ImageNet B0 state dict for training (efficientnet-pytorch layout)
+    )
+    input_size: int = 224  # training input side in pixels
+
+    def __post_init__(self) -> None:
+        if not 0.0 <= self.min_confidence <= 1.0:
+            raise ValueError(f"classifier.min_confidence={self.min_confidence} must be in [0, 1]")
+        if self.contact_threshold <= 0:
+            raise ValueError(f"classifier.contact_threshold={self.contact_threshold} must be > 0")
+        if not 0.0 < self.contact_min_area < 1.0:
+            raise ValueError(
+                f"classifier.contact_min_area={self.contact_min_area} must be in (0, 1)"
+            )
+        if self.contact_blur_px < 0:
+            raise ValueError(f"classifier.contact_blur_px={self.contact_blur_px} must be >= 0")
+        if self.input_size < 32:
+            raise ValueError(f"classifier.input_size={self.input_size} must be >= 32")
+
+
+@dataclass
+class OracleClassifierConfig:
+    """OracleClassifier arguments (perception/classifier/oracle.py): sim ground truth only."""
+
+    _target_: str = "neuralfeels_sem.perception.classifier.OracleClassifier"
+    class_names: list[str] = field(default_factory=list)
+    min_confidence: float = 0.0
+
+    def __post_init__(self) -> None:
+        if not 0.0 <= self.min_confidence <= 1.0:
+            raise ValueError(f"classifier.min_confidence={self.min_confidence} must be in [0, 1]")
+
+
+@dataclass
+class TrainClassifierTaskConfig(TaskConfig):
+    """The paper's recipe: 224 px (classifier.input_size), batch 32, AdamW 3e-4, wd 1e-5, patience 10."""
+
+    batch_size: int = 32
+    lr: float = 3e-4
+    weight_decay: float = 1e-5
+    max_epochs: int = 100
+    patience: int = 10
+    split: list[float] = field(default_factory=lambda: [0.7, 0.15, 0.15])  # train, val, test
+    rotation_deg: float = 30.0
+    brightness: float = 0.2
+    contrast: float = 0.2
+    color_gain: float = 0.1
+    resume: str = "auto"  # auto (continue when the run dir has last.pt) | never | PATH to a run dir or last.pt
+    export_fp16: bool = False  # store classifier.pt in half precision (the shipped asset)
+
+    def __post_init__(self) -> None:
+        for name in ("batch_size", "max_epochs", "patience"):
+            if getattr(self, name) < 1:
+                raise ValueError(f"task.{name}={getattr(self, name)} must be >= 1")
+        if self.batch_size < 2:
+            raise ValueError(f"task.batch_size={self.batch_size} must be >= 2 (BatchNorm)")
+        if self.lr <= 0 or self.weight_decay < 0:
+            raise ValueError(
+                f"task.lr={self.lr} must be > 0 and task.weight_decay={self.weight_decay} >= 0"
+            )
+        if len(self.split) != 3 or min(self.split) < 0 or abs(sum(self.split) - 1) > 1e-6:
+            raise ValueError(f"task.split={self.split} must be three fractions summing to 1")
+        if self.split[0] <= 0 or self.split[1] <= 0:
+            raise ValueError(f"task.split={self.split} needs train and validation fractions > 0")
+        if self.rotation_deg < 0 or min(self.brightness, self.contrast, self.color_gain) < 0:
+            raise ValueError(
+                "task augmentation strengths (rotation_deg, brightness, contrast, color_gain) must be >= 0"
+            )
+
+
+@dataclass
+class EvalClassifierTaskConfig(TaskConfig):
+    batch_size: int = 64
+
+    def __post_init__(self) -> None:
+        if self.batch_size < 1:
+            raise ValueError(f"task.batch_size={self.batch_size} must be >= 1")
+
+
+def register(cs) -> None:
+    cs.store(group="schema/classifier", name="efficientnet_b0", node=EfficientNetClassifierConfig)
+    cs.store(group="schema/classifier", name="oracle", node=OracleClassifierConfig)
+    cs.store(group="schema/task", name="train_classifier", node=TrainClassifierTaskConfig)
+    cs.store(group="schema/task", name="eval_classifier", node=EvalClassifierTaskConfig)

@@ -1,0 +1,100 @@
+"""`classifier.pt`: a trained classifier with everything inference needs, as plain types.
+
+Layout (loadable with `torch.load(..., weights_only=True)`):
+    format: "neuralfeels_sem.classifier/1"
+    arch: "efficientnet-b0"
+    state_dict: model tensors (fp32, or fp16 for the shipped asset)
+    class_names: list[str], in output order
+    input_size: int (square side in pixels)
+    mean, std: list[float] (RGB normalisation after scaling to [0, 1])
+    meta: dict of plain values (provenance: data counts, accuracies, settings)
+"""
+
+from __future__ import annotations
+
+from dataclasses import dataclass, field
+from pathlib import Path
+from typing import Any
+
+import torch
+from torch import nn
+
+from neuralfeels_sem.errors import DataError
+from neuralfeels_sem.perception.classifier.model import ARCH, build_model
+
+FORMAT = "neuralfeels_sem.classifier/1"
+
+
+@dataclass
+class ClassifierCheckpoint:
+    state_dict: dict[str, torch.Tensor]
+    class_names: list[str]
+    input_size: int
+    mean: list[float]
+    std: list[float]
+    meta: dict[str, Any] = field(default_factory=dict)
+
+    def build(self, device: torch.device | str = "cpu") -> nn.Module:
+        """The model in eval mode, in fp32 (fp16 storage is only for shipping)."""
+        model = build_model(len(self.class_names))
+        state = {k: v.float() if v.is_floating_point() else v for k, v in self.state_dict.items()}
+        model.load_state_dict(state, strict=True)
+        return model.to(device).eval()
+
+
+def save_checkpoint(
+    path: str | Path,
+    model: nn.Module,
+    class_names: list[str],
+    input_size: int,
+    mean: list[float],
+    std: list[float],
+    meta: dict[str, Any] | None = None,
+    fp16: bool = False,
+) -> Path:
+    path = Path(path)
+    state = {k: v.detach().cpu().clone() for k, v in model.state_dict().items()}
+    if fp16:
+        state = {k: v.half() if v.is_floating_point() else v for k, v in state.items()}
+    payload = {
+        "format": FORMAT,
+        "arch": ARCH,
+        "state_dict": state,
+        "class_names": list(class_names),
+        "input_size": int(input_size),
+        "mean": [float(v) for v in mean],
+        "std": [float(v) for v in std],
+        "meta": dict(meta or {}),
+    }
+    tmp = path.with_suffix(path.suffix + ".tmp")
+    torch.save(payload, tmp)
+    tmp.replace(path)  # never leave a half-written checkpoint behind
+    return path
+
+
+def load_checkpoint(path: str | Path) -> ClassifierCheckpoint:
+    path = Path(path)
+    if not path.is_file():
+        raise DataError(
+            f"classifier checkpoint {path} does not exist; train one with task=train_classifier"
+        )
+    try:
+        payload = torch.load(path, map_location="cpu", weights_only=True)
+    except Exception as exc:
+        raise DataError(
+            f"classifier checkpoint {path} is not readable ({exc.__class__.__name__}); re-export it"
+        ) from exc
+    if not isinstance(payload, dict) or payload.get("format") != FORMAT:
+        raise DataError(
+            f"{path} is not a SemanticFeels classifier checkpoint (expected format {FORMAT})"
+        )
+    if payload.get("arch") != ARCH:
+        raise DataError(f"classifier checkpoint {path} is a {payload.get('arch')}, expected {ARCH}")
+    return ClassifierCheckpoint(
+        state_dict=payload["state_dict"],
+        class_names=list(payload["class_names"]),
+        input_size=int(payload["input_size"]),
+        mean=list(payload["mean"]),
+        std=list(payload["std"]),
+        meta=dict(payload.get("meta", {})),
+    )

@@ -1,0 +1,201 @@
+"""The material classifier the mapper calls: tactile readings in, TouchLabels out.
+
+    clf = MaterialClassifier(class_names=["plastic", "metal", "fabric", "wood"])
+    labels = clf.classify([frame.tactile[f] for f in frame.tactile])  # one TouchLabel each
+
+The checkpoint loads on first use (the constructor does no I/O). Each frame is first
+gated for contact against its sensor's no-contact background; only contact frames are
+classified. A prediction whose top probability is below `min_confidence` is returned
+as `label=-1, low_confidence=True` instead of being forced to a class.
+"""
+
+from __future__ import annotations
+
+import logging
+from collections.abc import Sequence
+from pathlib import Path
+
+import cv2
+import numpy as np
+import torch
+
+from neuralfeels_sem.errors import ConfigError, DataError
+from neuralfeels_sem.perception.classifier.checkpoint import ClassifierCheckpoint, load_checkpoint
+from neuralfeels_sem.perception.classifier.model import build_model
+from neuralfeels_sem.perception.classifier.predict import predict_probs
+from neuralfeels_sem.perception.classifier.transforms import resize_batch
+from neuralfeels_sem.perception.contact import ContactGate
+from neuralfeels_sem.perception.touch import NO_LABEL, TouchLabel
+from neuralfeels_sem.sensors.frame import TactileReading
+from neuralfeels_sem.utils.device import resolve_device
+from neuralfeels_sem.utils.paths import ASSETS_DIR
+
+log = logging.getLogger(__name__)
+
+SHIPPED_CHECKPOINT = ASSETS_DIR / "classifier" / "classifier.pt"
+
+
+class MaterialClassifier:
+    """EfficientNet-B0 material classifier with a background-difference contact gate.
+
+    class_names: the config's `materials`; must equal the checkpoint's class list.
+    checkpoint: a `classifier.pt`; None means the shipped one (assets/classifier/).
+    min_confidence: below this top probability a touch gets no label.
+    contact_*: ContactGate parameters (see perception/contact.py).
+    background_dir: folder of `<finger>.png` no-contact frames (e.g. `<data>/_backgrounds`).
+    first_frame_background: without any background, take a finger's first frame as its
+        background (a real DIGIT is usually started free of contact).
+    weights, input_size: how `task=train_classifier` builds a new model (`new_model()`);
+        a loaded checkpoint carries its own input size.
+    """
+
+    def __init__(
+        self,
+        class_names: Sequence[str],
+        checkpoint: str | None = None,
+        device: str = "auto",
+        min_confidence: float = 0.6,
+        contact_threshold: float = 40.0,
+        contact_min_area: float = 0.02,
+        contact_blur_px: float = 3.0,
+        background_dir: str | None = None,
+        first_frame_background: bool = True,
+        weights: str | None = None,
+        input_size: int = 224,
+    ) -> None:
+        if not 0.0 <= min_confidence <= 1.0:
+            raise ValueError(f"min_confidence={min_confidence} must be in [0, 1]")
+        self.class_names = list(class_names)
+        self.checkpoint = checkpoint
+        self.device_name = device
+        self.min_confidence = float(min_confidence)
+        self.gate = ContactGate(contact_threshold, contact_min_area, contact_blur_px)
+        self.background_dir = background_dir
+        self.first_frame_background = first_frame_background
+        self.weights = weights
+        self.input_size = int(input_size)
+        self._backgrounds: dict[str, np.ndarray] = {}
+        self._model: torch.nn.Module | None = None
+        self._ckpt: ClassifierCheckpoint | None = None
+        self._device: torch.device | None = None
+
+    # ---- training side -------------------------------------------------------------
+    def new_model(self) -> torch.nn.Module:
+        """A fresh EfficientNet-B0 for these classes (backbone from `weights` if set)."""
+        from neuralfeels_sem.perception.classifier.dataset import resolve_path
+
+        return build_model(
+            len(self.class_names), resolve_path(self.weights) if self.weights else None
+        )
+
+    # ---- loading -------------------------------------------------------------------
+    @property
+    def checkpoint_path(self) -> Path:
+        if self.checkpoint is None:
+            return SHIPPED_CHECKPOINT
+        from neuralfeels_sem.perception.classifier.dataset import resolve_path
+
+        return resolve_path(self.checkpoint)
+
+    def open(self) -> MaterialClassifier:
+        """Load the checkpoint and backgrounds (done automatically on first use)."""
+        if self._model is not None:
+            return self
+        path = self.checkpoint_path
+        if self.checkpoint is None and not path.is_file():
+            raise ConfigError(
+                f"no shipped classifier at {path}; train one with task=train_classifier and set classifier.checkpoint"
+            )
+        ckpt = load_checkpoint(path)
+        if ckpt.class_names != self.class_names:
+            raise ConfigError(
+                f"classifier checkpoint {path} was trained for {ckpt.class_names} but materials={self.class_names}; "
+                "set materials to match or train a classifier for these classes"
+            )
+        self._device = resolve_device(self.device_name)
+        self._model = ckpt.build(self._device)
+        self._ckpt = ckpt
+        if self.background_dir is not None:
+            self._load_backgrounds()
+        return self
+
+    def _load_backgrounds(self) -> None:
+        from neuralfeels_sem.perception.classifier.dataset import resolve_path
+
+        folder = resolve_path(self.background_dir)
+        files = (
+            sorted(folder.glob("*.png")) + sorted(folder.glob("*.jpg")) if folder.is_dir() else []
+        )
+        if not files:
+            raise DataError(
+                f"classifier.background_dir={folder} has no <finger>.png background frames"
+            )
+        for f in files:
+            bgr = cv2.imread(str(f), cv2.IMREAD_COLOR)
+            if bgr is None:
+                raise DataError(f"background frame {f} is unreadable; recapture it")
+            self._backgrounds[f.stem] = np.ascontiguousarray(bgr[..., ::-1])
+
+    @property
+    def loaded(self) -> ClassifierCheckpoint:
+        """The loaded checkpoint (class names, input size, normalisation, provenance)."""
+        self.open()
+        return self._ckpt
+
+    def set_background(self, finger: str, image: np.ndarray) -> None:
+        """Use `image` as the no-contact reference of `finger` from now on."""
+        self._backgrounds[finger] = np.asarray(image)
+
+    # ---- inference -----------------------------------------------------------------
+    def predict_images(self, images: np.ndarray) -> np.ndarray:
+        """(B, H, W, 3) uint8 tactile images (any size, e.g. 320x240) -> (B, C) probabilities."""
+        self.open()
+        images = np.asarray(images)
+        if images.ndim != 4 or images.shape[-1] != 3 or images.dtype != np.uint8:
+            raise ValueError(
+                f"expected (B, H, W, 3) uint8 images, got {images.shape} {images.dtype}"
+            )
+        if len(images) == 0:
+            return np.zeros((0, len(self.class_names)), dtype=np.float32)
+        ckpt = self._ckpt
+        batch = resize_batch(images, ckpt.input_size)
+        return predict_probs(self._model, batch, ckpt.mean, ckpt.std, self._device)
+
+    def background_for(self, reading: TactileReading) -> np.ndarray | None:
+        if reading.background is not None:
+            return reading.background
+        if reading.finger not in self._backgrounds and self.first_frame_background:
+            log.warning(
+                "no background for %s; using its first frame as the no-contact reference",
+                reading.finger,
+            )
+            self._backgrounds[reading.finger] = reading.image.copy()
+        return self._backgrounds.get(reading.finger)
+
+    def in_contact(self, reading: TactileReading) -> bool:
+        background = self.background_for(reading)
+        if background is None:
+            raise ConfigError(
+                f"no background frame for finger {reading.finger}; set classifier.background_dir "
+                "or classifier.first_frame_background=true"
+            )
+        return self.gate.in_contact(reading.image, background)
+
+    def classify(self, readings: Sequence[TactileReading]) -> list[TouchLabel]:
+        """One TouchLabel per reading; frames without contact get no label."""
+        self.open()
+        contact = [self.in_contact(r) for r in readings]
+        labels = [TouchLabel(finger=r.finger, contact=c) for r, c in zip(readings, contact)]
+        touched = [i for i, c in enumerate(contact) if c]
+        if touched:
+            probs = self.predict_images(np.stack([readings[i].image for i in touched]))
+            for i, p in zip(touched, probs):
+                top = int(p.argmax())
+                labels[i].probs = p
+                labels[i].confidence = float(p[top])
+                if p[top] < self.min_confidence:
+                    labels[i].low_confidence = True
+                    labels[i].label = NO_LABEL
+                else:
+                    labels[i].label = top
+        return labels

@@ -1,0 +1,73 @@
+"""EfficientNet-B0 with a head for the configured material classes (efficientnet-pytorch).
+
+efficientnet-pytorch needs only torch (torchvision does not import with the CPU torch
+build used here). No weights are downloaded: pretrained ImageNet weights come from a
+local state dict in the library's own layout (`EfficientNet.from_pretrained` keys).
+"""
+
+from __future__ import annotations
+
+from pathlib import Path
+
+import torch
+from efficientnet_pytorch import EfficientNet
+from torch import nn
+
+from neuralfeels_sem.errors import DataError
+
+ARCH = "efficientnet-b0"
+HEAD_KEYS = ("_fc.weight", "_fc.bias")
+
+
+def build_model(num_classes: int, weights: str | Path | None = None) -> nn.Module:
+    """EfficientNet-B0 with a fresh `num_classes` head, backbone from `weights` if given."""
+    if num_classes < 2:
+        raise ValueError(f"num_classes={num_classes} must be >= 2")
+    model = EfficientNet.from_name(ARCH, num_classes=num_classes)
+    if weights is not None:
+        load_backbone(model, weights)
+    return model
+
+
+def load_backbone(model: nn.Module, weights: str | Path) -> None:
+    """Load every non-head tensor of a library-layout state dict; the head stays new.
+
+    Strict: a missing or unexpected backbone key, or a shape mismatch, is an error (a
+    wrong file must not half-load). The head is taken only if it already has this
+    model's class count (e.g. weights saved from a model of the same classes).
+    """
+    path = Path(weights)
+    if not path.is_file():
+        raise DataError(
+            f"classifier.weights={path} does not exist; give a local EfficientNet-B0 state dict"
+        )
+    try:
+        state = torch.load(path, map_location="cpu", weights_only=True)
+    except Exception as exc:
+        raise DataError(
+            f"classifier.weights={path} is not a readable torch state dict ({exc})"
+        ) from exc
+    if isinstance(state, dict) and "state_dict" in state and isinstance(state["state_dict"], dict):
+        state = state["state_dict"]
+    own = model.state_dict()
+    backbone = {k: v for k, v in state.items() if k not in HEAD_KEYS}
+    missing = sorted(set(own) - set(HEAD_KEYS) - set(backbone))
+    unexpected = sorted(set(backbone) - set(own))
+    if missing or unexpected:
+        raise DataError(
+            f"classifier.weights={path} is not an EfficientNet-B0 state dict in efficientnet-pytorch layout "
+            f"({len(missing)} missing keys e.g. {missing[:2]}, {len(unexpected)} unexpected e.g. {unexpected[:2]})"
+        )
+    bad = [k for k, v in backbone.items() if tuple(v.shape) != tuple(own[k].shape)]
+    if bad:
+        raise DataError(
+            f"classifier.weights={path} has wrong shapes for {bad[:3]}; expected EfficientNet-B0"
+        )
+    head_fits = all(k in state and tuple(state[k].shape) == tuple(own[k].shape) for k in HEAD_KEYS)
+    if head_fits:
+        backbone.update({k: state[k] for k in HEAD_KEYS})
+    model.load_state_dict(backbone, strict=False)
+
+
+def num_parameters(model: nn.Module) -> int:
+    return sum(p.numel() for p in model.parameters())

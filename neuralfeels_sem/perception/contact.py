@@ -1,0 +1,68 @@
+"""Contact gate: does a DIGIT frame show contact, compared with its no-contact background?
+
+A DIGIT's background (the gel lit by its LEDs, nothing touching) differs from sensor to
+sensor and drifts slightly with temperature and exposure, so the gate compares each
+frame with the background of the same sensor: blurred absolute difference (the blur
+removes pixel noise and JPEG artefacts), minus the median difference over the frame
+(removes a global brightness drift), thresholded per pixel; the frame is in contact when
+the changed area is large enough. The same mask serves the mapper as a contact mask on
+real data, where no ground truth exists.
+"""
+
+from __future__ import annotations
+
+from dataclasses import dataclass
+
+import cv2
+import numpy as np
+
+
+@dataclass(frozen=True)
+class ContactGate:
+    """Background-difference contact detector for tactile images (H, W, 3) uint8.
+
+    threshold: per-pixel colour change (0-255, summed over RGB after blur and drift
+        removal) that counts as deformed gel.
+    min_area: fraction of the image that must change for the frame to be a contact.
+    blur_px: Gaussian blur sigma in pixels applied to the difference.
+    """
+
+    threshold: float = 30.0
+    min_area: float = 0.01
+    blur_px: float = 3.0
+
+    def __post_init__(self) -> None:
+        if self.threshold <= 0:
+            raise ValueError(f"contact threshold={self.threshold} must be > 0")
+        if not 0.0 < self.min_area < 1.0:
+            raise ValueError(f"contact min_area={self.min_area} must be in (0, 1)")
+        if self.blur_px < 0:
+            raise ValueError(f"contact blur_px={self.blur_px} must be >= 0")
+
+    def difference(self, image: np.ndarray, background: np.ndarray) -> np.ndarray:
+        """(H, W) float32 change score per pixel, in summed-RGB intensity levels."""
+        _check_pair(image, background)
+        diff = image.astype(np.float32) - background.astype(np.float32)
+        # A global exposure or LED drift shifts every pixel alike: remove it per channel.
+        diff -= np.median(diff.reshape(-1, 3), axis=0)
+        score = np.abs(diff).sum(axis=2)
+        if self.blur_px > 0:
+            score = cv2.GaussianBlur(score, (0, 0), self.blur_px)
+        return score
+
+    def mask(self, image: np.ndarray, background: np.ndarray) -> np.ndarray:
+        """(H, W) bool: pixels where the gel is deformed by contact."""
+        return self.difference(image, background) > self.threshold
+
+    def contact_fraction(self, image: np.ndarray, background: np.ndarray) -> float:
+        return float(self.mask(image, background).mean())
+
+    def in_contact(self, image: np.ndarray, background: np.ndarray) -> bool:
+        return self.contact_fraction(image, background) >= self.min_area
+
+
+def _check_pair(image: np.ndarray, background: np.ndarray) -> None:
+    if image.ndim != 3 or image.shape[2] != 3:
+        raise ValueError(f"tactile image must be (H, W, 3), got {image.shape}")
+    if background.shape != image.shape:
+        raise ValueError(f"background {background.shape} and image {image.shape} differ in shape")

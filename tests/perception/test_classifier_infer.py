@@ -1,0 +1,141 @@
+"""MaterialClassifier: lazy loading, class-list check, contact gate, confidence, and the oracle."""
+
+from __future__ import annotations
+
+from pathlib import Path
+
+import cv2
+import numpy as np
+import pytest
+import torch
+
+from neuralfeels_sem.errors import ConfigError
+from neuralfeels_sem.perception.classifier import MaterialClassifier, OracleClassifier
+from neuralfeels_sem.perception.classifier.checkpoint import save_checkpoint
+from neuralfeels_sem.perception.classifier.model import build_model
+from neuralfeels_sem.perception.classifier.transforms import IMAGENET_MEAN, IMAGENET_STD
+from neuralfeels_sem.perception.touch import NO_LABEL
+from neuralfeels_sem.sensors.frame import TactileReading
+from neuralfeels_sem.sim.digit_geometry import DIGIT_INTRINSICS
+from tests.perception.synthetic_tactile import CLASSES, background, pressed
+
+
+@pytest.fixture(scope="module")
+def checkpoint(tmp_path_factory) -> Path:
+    torch.manual_seed(0)
+    path = tmp_path_factory.mktemp("ckpt") / "classifier.pt"
+    save_checkpoint(path, build_model(4), CLASSES, 32, list(IMAGENET_MEAN), list(IMAGENET_STD))
+    return path
+
+
+def reading(finger: str, image: np.ndarray, bg: np.ndarray | None, **gt) -> TactileReading:
+    return TactileReading(
+        finger=finger,
+        image=image,
+        world_T_sensor=np.eye(4),
+        intrinsics=DIGIT_INTRINSICS,
+        background=bg,
+        **gt,
+    )
+
+
+def test_constructor_does_no_io_and_class_mismatch_is_a_config_error(checkpoint: Path) -> None:
+    clf = MaterialClassifier(
+        CLASSES, checkpoint="/nonexistent/classifier.pt"
+    )  # no error until used
+    assert clf._model is None
+    clf = MaterialClassifier(
+        ["plastic", "metal", "fabric"], checkpoint=str(checkpoint), device="cpu"
+    )
+    with pytest.raises(ConfigError, match="trained for .* but materials="):
+        clf.open()
+
+
+def test_classify_gates_contact_and_returns_probabilities(checkpoint: Path) -> None:
+    rng = np.random.default_rng(0)
+    clf = MaterialClassifier(CLASSES, checkpoint=str(checkpoint), device="cpu", min_confidence=0.0)
+    fingers = ["index", "middle", "ring", "thumb"]
+    images = [background(0), pressed(1, 0, rng), pressed(2, 3, rng), background(3)]
+    readings = [reading(f, im, background(i)) for i, (f, im) in enumerate(zip(fingers, images))]
+    labels = clf.classify(readings)
+    assert [t.finger for t in labels] == fingers
+    assert [t.contact for t in labels] == [False, True, True, False]
+    for t in (labels[0], labels[3]):
+        assert t.label == NO_LABEL and t.probs is None and not t.usable
+    probs = clf.predict_images(np.stack([images[1], images[2]]))
+    for t, p in zip((labels[1], labels[2]), probs):
+        np.testing.assert_allclose(t.probs, p, rtol=1e-5, atol=1e-6)
+        assert t.probs.sum() == pytest.approx(1.0, abs=1e-5)
+        assert t.label == int(p.argmax()) and t.confidence == pytest.approx(float(p.max()))
+        assert t.usable
+
+
+def test_low_confidence_is_marked_not_forced(checkpoint: Path) -> None:
+    clf = MaterialClassifier(CLASSES, checkpoint=str(checkpoint), device="cpu", min_confidence=0.99)
+    t = clf.classify([reading("index", pressed(0, 1, np.random.default_rng(1)), background(0))])[0]
+    assert (
+        t.contact and t.probs is not None and t.confidence < 0.99
+    )  # an untrained net is never that sure
+    assert t.low_confidence and t.label == NO_LABEL and not t.usable
+
+
+def test_backgrounds_from_folder_or_first_frame(checkpoint: Path, tmp_path: Path) -> None:
+    cv2.imwrite(str(tmp_path / "index.png"), background(0)[..., ::-1])
+    press = pressed(0, 2, np.random.default_rng(2))
+    clf = MaterialClassifier(
+        CLASSES, checkpoint=str(checkpoint), device="cpu", background_dir=str(tmp_path)
+    )
+    assert clf.classify([reading("index", press, None)])[0].contact
+    # No background anywhere: the first frame of a finger becomes its reference.
+    clf = MaterialClassifier(CLASSES, checkpoint=str(checkpoint), device="cpu")
+    assert not clf.classify([reading("ring", background(2), None)])[0].contact
+    assert clf.classify([reading("ring", pressed(2, 0, np.random.default_rng(3)), None)])[0].contact
+    strict = MaterialClassifier(
+        CLASSES, checkpoint=str(checkpoint), device="cpu", first_frame_background=False
+    )
+    with pytest.raises(ConfigError, match="no background frame for finger thumb"):
+        strict.classify([reading("thumb", background(3), None)])
+
+
+def test_predict_images_checks_shape(checkpoint: Path) -> None:
+    clf = MaterialClassifier(CLASSES, checkpoint=str(checkpoint), device="cpu")
+    assert clf.predict_images(np.zeros((0, 320, 240, 3), np.uint8)).shape == (0, 4)
+    assert clf.predict_images(np.zeros((3, 320, 240, 3), np.uint8)).shape == (3, 4)
+    with pytest.raises(ValueError):
+        clf.predict_images(np.zeros((320, 240, 3), np.uint8))
+
+
+def test_oracle_takes_majority_ground_truth_under_contact() -> None:
+    oracle = OracleClassifier(CLASSES, min_confidence=0.5)
+    image = background(0)
+    mask = np.zeros((320, 240), bool)
+    mask[100:200, 50:150] = True  # 10000 px
+    material = np.full((320, 240), -1, np.int16)
+    material[100:200, 50:120] = 2  # 7000 px fabric
+    material[100:200, 120:150] = 1  # 3000 px metal
+    material[0:50] = 3  # outside the contact: ignored
+    touch, none, ignore = oracle.classify(
+        [
+            reading("index", image, None, gt_contact_mask=mask, gt_material=material),
+            reading(
+                "middle", image, None, gt_contact_mask=np.zeros_like(mask), gt_material=material
+            ),
+            reading(
+                "ring", image, None, gt_contact_mask=mask, gt_material=np.full_like(material, -1)
+            ),
+        ]
+    )
+    assert touch.contact and touch.label == 2 and touch.confidence == pytest.approx(0.7)
+    np.testing.assert_allclose(touch.probs, [0.0, 0.3, 0.7, 0.0])
+    assert not none.contact and none.label == NO_LABEL
+    assert ignore.contact and ignore.label == NO_LABEL and not ignore.usable
+    strict = OracleClassifier(CLASSES, min_confidence=0.8)
+    low = strict.classify(
+        [reading("index", image, None, gt_contact_mask=mask, gt_material=material)]
+    )[0]
+    assert low.low_confidence and low.label == NO_LABEL
+
+
+def test_oracle_needs_ground_truth() -> None:
+    with pytest.raises(ConfigError, match="needs simulator ground truth"):
+        OracleClassifier(CLASSES).classify([reading("thumb", background(0), None)])

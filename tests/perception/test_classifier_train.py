@@ -1,0 +1,90 @@
+"""The training loop: resume after interruption equals an uninterrupted run; early stopping rule."""
+
+from __future__ import annotations
+
+from pathlib import Path
+
+import numpy as np
+import pytest
+import torch
+
+from neuralfeels_sem.errors import DataError
+from neuralfeels_sem.perception.classifier.checkpoint import load_checkpoint
+from neuralfeels_sem.perception.classifier.model import build_model
+from neuralfeels_sem.perception.classifier.train import BEST, LAST, TrainSettings, train
+from neuralfeels_sem.perception.classifier.transforms import (
+    IMAGENET_MEAN,
+    IMAGENET_STD,
+    resize_batch,
+)
+from tests.perception.synthetic_tactile import CLASSES, pressed
+
+SIZE = 32
+
+
+@pytest.fixture(scope="module")
+def arrays() -> tuple[np.ndarray, np.ndarray, np.ndarray, np.ndarray]:
+    rng = np.random.default_rng(0)
+    labels = np.arange(24) % 4
+    images = resize_batch([pressed(i % 4, int(c), rng) for i, c in enumerate(labels)], SIZE)
+    return images[:16], labels[:16], images[16:], labels[16:]
+
+
+def fit(
+    arrays,
+    run_dir: Path,
+    max_epochs: int,
+    resume: bool = False,
+    patience: int = 10,
+    lr: float = 3e-4,
+):
+    torch.manual_seed(0)
+    settings = TrainSettings(batch_size=8, max_epochs=max_epochs, patience=patience, lr=lr, seed=0)
+    return train(
+        build_model(4),
+        *arrays,
+        settings,
+        run_dir,
+        CLASSES,
+        SIZE,
+        list(IMAGENET_MEAN),
+        list(IMAGENET_STD),
+        torch.device("cpu"),
+        resume_from=run_dir / LAST if resume else None,
+    )
+
+
+def test_resumed_run_ends_where_an_uninterrupted_one_does(arrays, tmp_path: Path) -> None:
+    straight = fit(arrays, tmp_path / "straight", max_epochs=2)
+    first = fit(arrays, tmp_path / "cut", max_epochs=1)
+    assert first.epochs_run == 1
+    resumed = fit(arrays, tmp_path / "cut", max_epochs=2, resume=True)
+    assert resumed.resumed_from_epoch == 1 and resumed.epochs_run == 2
+    assert [h["epoch"] for h in resumed.history] == [1, 2]
+    assert resumed.history == straight.history
+    a = torch.load(tmp_path / "straight" / LAST, weights_only=True)["model"]
+    b = torch.load(tmp_path / "cut" / LAST, weights_only=True)["model"]
+    for key in a:
+        assert torch.equal(a[key], b[key]), key
+    best = load_checkpoint(tmp_path / "cut" / BEST)
+    assert (
+        best.meta["epoch"] == resumed.best_epoch
+        and best.meta["val_accuracy"] == resumed.best_val_accuracy
+    )
+
+
+def test_early_stopping_rule(arrays, tmp_path: Path) -> None:
+    result = fit(arrays, tmp_path, max_epochs=6, patience=1, lr=1e-9)
+    vals = [h["val_accuracy"] for h in result.history]
+    assert result.best_val_accuracy == max(vals) and vals[result.best_epoch - 1] == max(vals)
+    # stops exactly `patience` epochs after the best one, unless max_epochs came first
+    assert result.epochs_run == min(result.best_epoch + 1, 6)
+    assert result.stopped_early == (
+        result.epochs_run < 6 or result.epochs_run - result.best_epoch >= 1
+    )
+
+
+def test_too_little_data_is_a_data_error(arrays, tmp_path: Path) -> None:
+    x, y, vx, vy = arrays
+    with pytest.raises(DataError, match="too few images"):
+        fit((x[:1], y[:1], vx, vy), tmp_path, max_epochs=1)
