@@ -10,33 +10,30 @@ failing run keeps everything recorded so far.
 
 from __future__ import annotations
 
-import functools
 import json
 import logging
 
-from hydra.utils import instantiate
+from hydra.utils import get_class, instantiate
 from omegaconf import DictConfig, OmegaConf
 from tqdm import tqdm
 
 from neuralfeels_sem.sensors.base import Sensor
+from neuralfeels_sem.sensors.factory import build_sensor
 from neuralfeels_sem.sensors.replay.recording import RecordingReader, RecordingWriter
 from neuralfeels_sem.tasks.runner import output_dir
 
 log = logging.getLogger(__name__)
 
 
-def build_sensor(cfg: DictConfig) -> Sensor:
-    """Instantiate cfg.sensor; a partial sensor is completed with the object and the class list."""
-    sensor = instantiate(cfg.sensor)
-    if isinstance(sensor, functools.partial):
-        obj = None
-        object_cfg = cfg.get("object")
-        if object_cfg is not None and "_target_" in object_cfg:
-            obj = instantiate(object_cfg)
-            if isinstance(obj, functools.partial):
-                obj = obj(class_names=list(cfg.materials))
-        sensor = sensor(obj=obj, class_names=list(cfg.materials))
-    return sensor
+def make_sensor(cfg: DictConfig) -> Sensor:
+    """The configured sensor, completed like every task does (sensors/factory.py).
+
+    Hardware and replay sensors declare `needs_object = False`: building the object (mesh
+    generation) is skipped for them, so a missing device is reported at once.
+    """
+    target = get_class(cfg.sensor._target_)
+    obj = instantiate(cfg.object) if getattr(target, "needs_object", True) else None
+    return build_sensor(cfg.sensor, obj, list(cfg.materials))
 
 
 def _config_dict(cfg: DictConfig) -> dict:
@@ -77,7 +74,7 @@ def record(
 
 
 def run(cfg: DictConfig) -> dict:
-    sensor = build_sensor(cfg)
+    sensor = make_sensor(cfg)
     sensor.open()
     out = output_dir() / cfg.task.out
     writer = RecordingWriter(

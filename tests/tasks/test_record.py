@@ -35,7 +35,7 @@ def test_cli_without_hardware_exits_2_with_one_line_per_device(tmp_path) -> None
         "DIGIT ring",
         "DIGIT thumb",
     ]
-    assert lines[4].startswith("RealSense front-left") and lines[5].startswith(
+    assert lines[4].startswith("RealSense front_left") and lines[5].startswith(
         "Allegro hand on socketcan:can0"
     )
     assert not (tmp_path / "recording").exists()

@@ -34,6 +34,8 @@ def _label(device: Any) -> str:
 
 
 class RealSensor(Sensor):
+    needs_object = False  # tasks may skip building the object for this sensor
+
     def __init__(
         self,
         digit: DigitArray | None = None,

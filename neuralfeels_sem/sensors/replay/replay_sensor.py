@@ -20,6 +20,8 @@ log = logging.getLogger(__name__)
 
 
 class ReplaySensor(Sensor):
+    needs_object = False  # tasks may skip building the object for this sensor
+
     def __init__(
         self,
         recording: str | None = None,

@@ -60,7 +60,7 @@ def test_every_missing_device_is_reported_on_its_own_line() -> None:
     assert len(lines) == 4
     assert lines[0].startswith("DIGIT index (serial D20001) not found")
     assert lines[1].startswith("DIGIT thumb (serial D20004) not found")
-    assert lines[2].startswith("RealSense front-left") and "sensor.camera" in lines[2]
+    assert lines[2].startswith("RealSense front_left") and "sensor.camera" in lines[2]
     assert (
         lines[3].startswith("Allegro hand on socketcan:no_such_can9") and "sensor.hand" in lines[3]
     )

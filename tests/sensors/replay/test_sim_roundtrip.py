@@ -12,7 +12,7 @@ from neuralfeels_sem.sensors.base import Sensor
 from neuralfeels_sem.sensors.replay.feelsight import FeelSightReader, export_feelsight
 from neuralfeels_sem.sensors.replay.recording import RecordingWriter
 from neuralfeels_sem.sensors.replay.replay_sensor import ReplaySensor
-from neuralfeels_sem.tasks.record import build_sensor
+from neuralfeels_sem.tasks.record import make_sensor
 from tests.helpers import compose_config
 from tests.sensors.replay.synthetic_frames import assert_frames_equal
 
@@ -20,7 +20,7 @@ from tests.sensors.replay.synthetic_frames import assert_frames_equal
 @pytest.fixture(scope="module")
 def sim_frames():
     cfg = compose_config(["sensor=sim", "object=plushie", "sensor.duration_s=1.0", "sensor.fps=5"])
-    sensor = build_sensor(cfg)
+    sensor = make_sensor(cfg)
     with sensor:
         frames = list(sensor.frames())
     return frames, list(cfg.materials)
