@@ -5,7 +5,9 @@ sweep varied (the aggregate's groups), and draws what applies:
 - `single_material_heatmap.png`, `single_material_bars.png`: classifier accuracy per
   finger x material, mean over jobs, and bars with standard deviations (figure 4A/4B);
 - `matching_curves.png`: every run's matching curve, final mean ± std in the title (figure 5A);
-- `ablation.png`: headline metrics per group (mean ± std), clustered by object.
+- `ablation.png`: headline metrics per group (mean ± std), clustered by object;
+- `classifier_per_sensor.png`: from train/eval_classifier jobs' report.json, test accuracy
+  per sensor (mean ± std over runs, as figure 3B).
 Jobs that failed or lack files are skipped; a plot that cannot be drawn is logged, never raised.
 """
 
@@ -32,10 +34,10 @@ ABLATION_METRICS = (
 )
 
 
-def _load_metrics(sweep_dir: Path, job: dict) -> dict | None:
+def _load_metrics(sweep_dir: Path, job: dict, name: str = "metrics.json") -> dict | None:
     if job.get("status") != "ok":
         return None
-    path = sweep_dir / str(job.get("job")) / "metrics.json"
+    path = sweep_dir / str(job.get("job")) / name
     try:
         data = json.loads(path.read_text())
     except (OSError, ValueError):
@@ -190,13 +192,17 @@ def plot_groups(summary: dict, path: Path, dpi: int = 120) -> Path | None:
     def setting(g: dict) -> str:
         return ", ".join(f"{k.split('.')[-1]}={g['group'].get(k)}" for k in axis_keys) or "all"
 
-    clusters = sorted({str(g["group"].get("object", "all")) for g in groups})
+    # Without an object axis, name the one object the jobs share (else "all").
+    objects = {str(j.get("overrides", {}).get("object")) for j in summary.get("jobs") or []}
+    fixed = objects.pop() if len(objects) == 1 and "None" not in objects else "all"
+    clusters = sorted({str(g["group"].get("object", fixed)) for g in groups})
     settings = sorted({setting(g) for g in groups})
     fig = Figure(
         figsize=(
             max(5.0, 1.5 * len(clusters) * max(1, len(settings)) ** 0.5 + 2.5),
-            3.4 * len(metrics),
-        )
+            3.0 * len(metrics) + 0.3 * len(settings),
+        ),
+        layout="constrained",
     )
     axes = fig.subplots(len(metrics), 1, squeeze=False)[:, 0]
     width = 0.8 / len(settings)
@@ -206,7 +212,7 @@ def plot_groups(summary: dict, path: Path, dpi: int = 120) -> Path | None:
             means, stds = np.full(len(clusters), np.nan), np.zeros(len(clusters))
             for g in groups:
                 if setting(g) == name and key in g.get("metrics", {}):
-                    c = clusters.index(str(g["group"].get("object", "all")))
+                    c = clusters.index(str(g["group"].get("object", fixed)))
                     means[c] = scale * g["metrics"][key]["mean"]
                     stds[c] = scale * g["metrics"][key]["std"]
             ax.bar(
@@ -223,8 +229,38 @@ def plot_groups(summary: dict, path: Path, dpi: int = 120) -> Path | None:
         ax.set_ylabel(label)
         ax.grid(axis="y", alpha=0.3)
     axes[0].set_title("Comparison per setting (mean ± std over trials)")
-    axes[0].legend(fontsize=8)
-    fig.tight_layout()
+    fig.legend(*axes[0].get_legend_handles_labels(), loc="outside lower center", fontsize=8)
+    return _save(fig, path, dpi)
+
+
+def plot_classifier_sensors(reports: list[dict], path: Path, dpi: int = 120) -> Path | None:
+    """Test accuracy per DIGIT sensor over classifier runs (mean ± std), as the paper's figure 3B."""
+    per_sensor = [r["per_sensor"] for r in reports]
+    sensors = _ordered({s for p in per_sensor for s in p}, FINGER_ORDER)
+    if not sensors:
+        return None
+    values = [[100.0 * float(p[s]) for p in per_sensor if p.get(s) is not None] for s in sensors]
+    means = [float(np.mean(v)) if v else np.nan for v in values]
+    stds = [float(np.std(v, ddof=1)) if len(v) > 1 else 0.0 for v in values]
+    fig = Figure(figsize=(max(4.5, 1.1 * len(sensors) + 2.0), 3.6), layout="constrained")
+    ax = fig.add_subplot()
+    ax.bar(range(len(sensors)), np.nan_to_num(means), yerr=stds, capsize=4, color="#4C72B0")
+    for i, m in enumerate(means):
+        if not np.isnan(m):
+            ax.text(
+                i,
+                min(m, 100.0) / 2,
+                f"{m:.1f}",
+                ha="center",
+                va="center",
+                color="white",
+                fontsize=9,
+            )
+    ax.set_xticks(range(len(sensors)), sensors)
+    ax.set_ylim(0, 105)
+    ax.set_ylabel("test accuracy [%]")
+    ax.grid(axis="y", alpha=0.3)
+    ax.set_title(f"Classifier accuracy per sensor ({len(reports)} runs, mean ± std)")
     return _save(fig, path, dpi)
 
 
@@ -260,12 +296,20 @@ def plot_experiment(summary: dict, sweep_dir: Path, dpi: int = 120) -> list[Path
             lambda: plot_runs_matching(with_curve, varying, sweep_dir / "matching_curves.png", dpi),
         )
     attempt("ablation", lambda: plot_groups(summary, sweep_dir / "ablation.png", dpi))
-    for path in written:
-        log.info("wrote %s", path)
+    reports = [
+        r for job in jobs if isinstance(r := _load_metrics(sweep_dir, job, "report.json"), dict)
+    ]
+    reports = [r for r in reports if isinstance(r.get("per_sensor"), dict) and r["per_sensor"]]
+    if reports:
+        sensors_png = sweep_dir / "classifier_per_sensor.png"
+        attempt("classifier_per_sensor", lambda: plot_classifier_sensors(reports, sensors_png, dpi))
+    for written_path in written:
+        log.info("wrote %s", written_path)
     return written
 
 
 __all__ = [
+    "plot_classifier_sensors",
     "plot_experiment",
     "finger_material_table",
     "plot_finger_material",

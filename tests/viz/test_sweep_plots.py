@@ -147,3 +147,38 @@ def test_nothing_to_plot_and_broken_files_do_not_crash(tmp_path: Path) -> None:
     summary["jobs"].append({"job": "7", "overrides": {"seed": "7"}, "status": "ok", "metrics": {}})
     assert plot_experiment(summary, sweep) == []
     assert plot_experiment({}, sweep) == []
+
+
+def test_classifier_sweep_plots_per_sensor(tmp_path: Path) -> None:
+    sweep = tmp_path / "sweep"
+    for seed, thumb in enumerate((0.90, 0.96)):
+        write_job(sweep, str(seed), ["task=train_classifier", f"seed={seed}"], None)
+        report = {
+            "test_accuracy": 0.97,
+            "per_sensor": {"thumb": thumb, "index": 0.99, "ring": 1.0, "middle": 0.98},
+        }
+        (sweep / str(seed) / "report.json").write_text(json.dumps(report))
+    summary = summarize(sweep)
+    paths = plot_experiment(summary, sweep)
+    assert [p.name for p in paths] == ["classifier_per_sensor.png"]
+    assert_png(paths[0])
+
+
+def test_ablation_without_object_axis_names_the_shared_object(tmp_path: Path) -> None:
+    sweep = tmp_path / "sweep"
+    fingers = ("[index,middle,ring,thumb]", "[index,ring]")
+    for k, (value, seed) in enumerate((f, s) for f in fingers for s in (0, 1)):
+        write_job(
+            sweep,
+            str(k),
+            ["object=patched_toy", f"sensor.fingers={value}", f"seed={seed}"],
+            {"matching_pct": 70.0 + k, "matching_curve": [[0, 0.0, 40.0], [10, 1.0, 70.0 + k]]},
+        )
+    summary = summarize(sweep)
+    assert [g["group"] for g in summary["groups"]] == [
+        {"sensor.fingers": f} for f in sorted(fingers)
+    ]
+    paths = plot_experiment(summary, sweep)
+    assert {p.name for p in paths} == {"matching_curves.png", "ablation.png"}
+    for path in paths:
+        assert_png(path)
