@@ -3,9 +3,9 @@
 The object turns under the hand (trajectory.py). Every finger runs the same cycle,
 staggered by a quarter period so that about three fingers touch at any time:
 
-  contact  (contact_fraction of the period): the gel stays on one surface point of the
-           object (fixed in the object frame, so the finger rides along with the turn),
-           pressed in by the finger's firmness;
+  contact  (contact_fraction of the period): the gel lands on the planned point, pressed
+           in by the finger's firmness, then holds its place while the surface slides
+           under it (the rig keeps the press depth);
   lift     the gel backs off the surface by `lift_m` along the normal;
   transfer it swings, outside the object, to the next contact point;
   approach it presses onto the new point.
@@ -77,6 +77,9 @@ class GaitingPolicy:
         self.seed = seed
         self._contacts: dict[tuple[str, int], Contact | None] = {}
         self.broken: set[tuple[str, int]] = set()  # (finger, cycle) whose contact the rig gave up
+        # Where a finger actually touched last in a cycle (the rig lets the surface slide under
+        # a touching finger); the lift starts from there.
+        self.last_contact: dict[tuple[str, int], Contact] = {}
 
     def cycle_and_phase(self, finger: str, t: float) -> tuple[int, float]:
         s = t / self.period + PHASE_OFFSETS[finger]
@@ -104,7 +107,8 @@ class GaitingPolicy:
     def plan(self, finger: str, t: float, hover: np.ndarray, hover_pad: np.ndarray) -> FingerPlan:
         """Target of `finger` at time t; `hover` and `hover_pad` (object frame) where no contact exists."""
         k, phase = self.cycle_and_phase(finger, t)
-        now = self.contact(finger, k)
+        planned = self.contact(finger, k)
+        now = self.last_contact.get((finger, k), planned)
         if phase < self.contact_fraction:
             if now is None:
                 return FingerPlan(hover, hover_pad, False, k, None)

@@ -36,10 +36,10 @@ REST_Q = np.array([0.0, -0.19, 0.0, 0.0] * 3 + [0.263, 0.0, 0.0, 0.0])
 NOMINAL_Q = np.array(
     [0.4, 0.6, 0.6, 0.5, 0.0, 0.6, 0.6, 0.5, -0.4, 0.6, 0.6, 0.5, 1.25, 0.1, 0.3, 0.3]
 )
-POSTURE_JITTER = np.array([0.15, 0.3, 0.3, 0.3] * 3 + [0.12, 0.25, 0.25, 0.25])
+POSTURE_JITTER = np.array([0.2, 0.3, 0.3, 0.3] * 3 + [0.12, 0.25, 0.25, 0.25])
 SAMPLE_TRIES = 24
 RAY_BACK_M = 0.06  # contact rays start this far behind the gel surface
-MAX_SHIFT_M = 0.03  # a sampled pad may be at most this far from the surface along its direction
+MAX_SHIFT_M = 0.015  # a sampled pad may be at most this far from the surface
 GRAZING_COS = 0.5  # the surface must face the pad within 60 degrees
 HOVER_BACK_M = 0.015  # a finger with nothing to touch waits this far behind its natural place
 PALM_CLEARANCE_M = 0.008
@@ -136,6 +136,7 @@ class SimRig:
         for f in self.fingers:
             i = FINGERS.index(f)
             self.q[4 * i : 4 * i + 4] = NOMINAL_Q[4 * i : 4 * i + 4]
+        self._sliding: dict[str, int] = {}  # finger -> cycle in which it is touching
         self.scene.set_state(self.q, self.trajectory.pose(0.0))
 
     @staticmethod
@@ -168,27 +169,52 @@ class SimRig:
     def _sample_contact(
         self, finger: str, world_T_object: np.ndarray, rng: np.random.Generator
     ) -> Contact | None:
-        """A reachable touch: a random posture near the natural one, its pad pushed onto the object."""
+        """A reachable touch: a random posture near the natural one, its pad pushed onto the object.
+
+        Touches within MAX_SHIFT_M of a sampled posture are preferred; a narrow or offset
+        object that no finger posture nearly touches gets a second, wider search.
+        """
+        for max_shift in (MAX_SHIFT_M, 2.0 * MAX_SHIFT_M):
+            contact = self._search_contact(finger, world_T_object, rng, max_shift)
+            if contact is not None:
+                return contact
+        return None
+
+    def _search_contact(
+        self, finger: str, world_T_object: np.ndarray, rng: np.random.Generator, max_shift: float
+    ) -> Contact | None:
         model, data = self.scene.model, self._probe
         self.scene.set_object_pose(world_T_object, data)
         i = FINGERS.index(finger)
         joints = slice(4 * i, 4 * i + 4)
         limits = self.ik.limits[finger]
+        centre = world_T_object[:3, 3]
+        best, best_shift = None, max_shift
         for _ in range(SAMPLE_TRIES):
             q = NOMINAL_Q[joints] + rng.uniform(-1.0, 1.0, 4) * POSTURE_JITTER[joints]
             data.qpos[joints] = np.clip(q, limits[:, 0], limits[:, 1])
             mujoco.mj_kinematics(model, data)
             gel, pad = self._gel(model, data, finger)
-            start = gel - RAY_BACK_M * pad
-            dist, normal = self.scene.ray_object(start, pad, data)
-            # Keep touches within reach of the sampled posture and not grazing the surface.
-            if dist < 0 or abs(dist - RAY_BACK_M) > MAX_SHIFT_M or normal @ pad > -GRAZING_COS:
-                continue
-            object_T_world = invert_pose(world_T_object)
-            rot = object_T_world[:3, :3]
-            point = rot @ (start + dist * pad) + object_T_world[:3, 3]
-            return Contact(point=point, normal=rot @ normal, pad=rot @ pad)
-        return None
+            # Look along the pad first; a narrow object may pass beside it, so then look
+            # from the gel toward the object's centre (the IK tilts the finger the rest).
+            to_centre = centre - gel
+            to_centre /= np.linalg.norm(to_centre)
+            for look in (pad, to_centre):
+                start = gel - RAY_BACK_M * look
+                dist, normal = self.scene.ray_object(start, look, data)
+                shift = abs(dist - RAY_BACK_M)
+                # The touch closest to a sampled posture wins; never a grazing one.
+                if dist < 0 or shift >= best_shift or normal @ pad > -GRAZING_COS:
+                    continue
+                best, best_shift = (start + dist * look, normal, pad), shift
+        if best is None:
+            return None
+        object_T_world = invert_pose(world_T_object)
+        rot = object_T_world[:3, :3]
+        point, normal, pad = best
+        return Contact(
+            point=rot @ point + object_T_world[:3, 3], normal=rot @ normal, pad=rot @ pad
+        )
 
     # ------------------------------------------------------------------ per time step
     def press_depth(self, finger: str) -> float:
@@ -203,6 +229,13 @@ class SimRig:
             if dist >= 0:
                 deepest = max(deepest, _PROBE_BACK_M - dist)
         return float(deepest) if np.isfinite(deepest) else -_PROBE_BACK_M
+
+    def _centre_hit(self, finger: str) -> tuple[np.ndarray, np.ndarray] | None:
+        """Object surface point (world) in front of the gel centre along the pad, and its normal."""
+        pos, pad = self.ik.gel_pose(finger)
+        start = pos - _PROBE_BACK_M * pad
+        dist, normal = self.scene.ray_object(start, pad)
+        return None if dist < 0 else (start + dist * pad, normal)
 
     def state_at(self, t: float) -> RigState:
         if self.scene is None:
@@ -220,7 +253,12 @@ class SimRig:
             hover = object_T_world[:3, :3] @ (gel - HOVER_BACK_M * pad) + object_T_world[:3, 3]
             plan = self.policy.plan(f, t, hover, object_T_world[:3, :3] @ pad)
             plans[f] = plan
-            targets[f] = FingerTarget(rot @ plan.gel_target + trans, rot @ plan.pad_direction)
+            if plan.touching and self._sliding.get(f) == plan.cycle:
+                # Already touching in this cycle: hold the finger where it is and let the
+                # surface slide under it; press control below keeps the depth.
+                targets[f] = FingerTarget(*self.ik.gel_pose(f))
+            else:
+                targets[f] = FingerTarget(rot @ plan.gel_target + trans, rot @ plan.pad_direction)
         errors = self.ik.solve(targets)
         press = {f: self.press_depth(f) for f in self.fingers}
         for _ in range(2):  # press control: slide each finger along its pad direction
@@ -243,11 +281,21 @@ class SimRig:
         touching, contact = {}, {}
         for f in self.fingers:
             plan = plans[f]
-            ok = plan.touching and errors[f] < LOST_CONTACT_M and press[f] > 0
+            hit = self._centre_hit(f) if plan.touching else None
+            ok = plan.touching and errors[f] < LOST_CONTACT_M and press[f] > 0 and hit is not None
             if plan.touching and not ok:
                 self.policy.broken.add((f, plan.cycle))
             touching[f] = ok
-            contact[f] = plan.contact.point if ok and plan.contact is not None else None
+            contact[f] = None
+            if ok:
+                self._sliding[f] = plan.cycle
+                point, normal = hit
+                _, pad = self.ik.gel_pose(f)
+                rot_o = object_T_world[:3, :3]
+                contact[f] = rot_o @ point + object_T_world[:3, 3]
+                self.policy.last_contact[(f, plan.cycle)] = Contact(
+                    contact[f], rot_o @ normal, rot_o @ pad
+                )
         self.q = self.scene.data.qpos[:16].copy()
         self.scene.set_state(self.q, world_T_object)
         return RigState(
