@@ -177,7 +177,7 @@ def _yarn_offset(radius: float, wavelength: float, amplitude: float, seed: int =
 def yarn_ball() -> Recipe:
     radius = 0.034
     shape = S.displaced(
-        S.sphere((0.0, 0.0, 0.0), radius), _yarn_offset(radius, 0.005, 0.0008), 0.0008
+        S.sphere((0.0, 0.0, 0.0), radius), _yarn_offset(radius, 0.006, 0.0006), 0.0006
     )
     return Recipe(
         "yarn_ball",
@@ -186,7 +186,7 @@ def yarn_ball() -> Recipe:
         (-0.04,) * 3,
         (0.04,) * 3,
         "fabric",
-        # Finer grid (1.3 mm) so that each 5 mm strand spans four cells.
+        # Finer grid (1.3 mm) so that each 6 mm strand spans between four and five cells.
         target_faces=28_000,
     )
 
