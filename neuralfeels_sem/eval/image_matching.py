@@ -93,6 +93,8 @@ class ImageMatcher:
 
         gt, pred: (V, H, W) int64 labels (IGNORE = -1 on gt only, BACKGROUND = -2);
         diff: (V, H, W) bool, True where gt is in the regions of interest and pred differs.
+        matching_pct_image is NaN when no region-of-interest pixel is visible from the views
+        (e.g. a region only on the underside); the 3D form still scores it.
         """
         if not self._ready:
             self._prepare()
