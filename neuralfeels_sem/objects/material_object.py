@@ -7,6 +7,8 @@ from dataclasses import dataclass
 import numpy as np
 import trimesh
 
+from neuralfeels_sem.objects.proximity import closest_faces
+
 IGNORE = -1  # face label outside the regions of interest (black in the paper's maps)
 
 
@@ -62,7 +64,5 @@ class MaterialObject:
 
     def labels_at(self, points: np.ndarray) -> np.ndarray:
         """Ground-truth label of the closest face to each (N,3) object-frame point."""
-        from neuralfeels_sem.objects.proximity import closest_faces  # scipy, only when used
-
         faces, _ = closest_faces(self.mesh, points)
         return self.face_labels[faces]

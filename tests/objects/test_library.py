@@ -90,6 +90,16 @@ def test_patched_toy_has_touchable_fabric_and_plastic() -> None:
     np.testing.assert_array_equal(plain.mesh.faces, obj.mesh.faces)
 
 
+def test_mass_from_body_material_and_area_weighted_friction() -> None:
+    obj = make_object("patched_toy", CLASSES)
+    areas = obj.area_by_material()
+    np.testing.assert_allclose(obj.mass_kg, 350.0 * obj.mesh.volume)  # hollow plastic body
+    expected = (0.6 * areas["plastic"] + 1.0 * areas["fabric"]) / (
+        areas["plastic"] + areas["fabric"]
+    )
+    np.testing.assert_allclose(obj.friction, expected)
+
+
 def test_seam_between_materials_is_ignored() -> None:
     obj = make_object("patched_toy", CLASSES)
     a, b = obj.mesh.face_adjacency.T
