@@ -127,3 +127,12 @@ def test_closing_a_depth_renderer_leaves_other_renderers_working() -> None:
         renderer.render(pose)
     np.testing.assert_array_equal(other.render(pose), before)
     other.close()
+
+
+def test_hidden_region_of_interest_gives_nan_image_score(sphere: MaterialObject) -> None:
+    labels = np.where(sphere.mesh.triangles_center[:, 2] < -0.045, 0, -1)  # bottom cap only
+    bottom = MaterialObject("bottom_only", sphere.mesh, labels, sphere.class_names)
+    maps = render_label_maps(bottom, predict_by_y, views=2, size=32, elevation_deg=60.0)
+    assert np.isnan(maps["matching_pct_image"])
+    assert not (maps["gt"] >= 0).any() and not maps["diff"].any()
+    assert MatchingEvaluator(bottom, 500).score(lambda x: np.zeros(len(x), dtype=np.int64)) == 100.0
