@@ -29,7 +29,8 @@ def _check_limits(name: str, limits: list[list[float]] | None) -> None:
 class DigitConfig:
     _target_: str = "neuralfeels_sem.sensors.real.digit.DigitArray"
     _convert_: str = "all"
-    # One serial per finger (printed on the sensor, e.g. D20001); a finger left out has no DIGIT.
+    fingers: list[str] = field(default_factory=lambda: list(FINGERS))  # DIGITs in use
+    # One serial per finger (printed on the sensor, e.g. D20001).
     serials: dict[str, str] = field(default_factory=lambda: {f: "" for f in FINGERS})
     resolution: str = "QVGA"  # QVGA (60 or 30 fps) or VGA (30 or 15 fps)
     fps: int = 60
@@ -49,7 +50,7 @@ class DigitConfig:
             raise ValueError(
                 f"sensor.digit.background_frames={self.background_frames} must be >= 1"
             )
-        for finger in (*self.serials, *self.video_files):
+        for finger in (*self.fingers, *self.serials, *self.video_files):
             if finger not in FINGERS:
                 raise ValueError(
                     f"sensor.digit: unknown finger {finger!r}; use {', '.join(FINGERS)}"
@@ -133,7 +134,7 @@ class ArucoPoseConfig:
     _convert_: str = "all"
     # marker id -> object_T_marker [x, y, z, rx, ry, rz]; empty: no markers, the pose stays
     # sensor.world_T_object (or comes from the pose tracker, mapping.pose=track).
-    markers: dict[int, list[float]] = field(default_factory=dict)
+    markers: dict[str, list[float]] = field(default_factory=dict)  # keys are marker ids
     marker_length_m: float = 0.02
     dictionary: str = "DICT_4X4_50"
     max_reprojection_px: float = 3.0

@@ -72,7 +72,7 @@ class ArucoObjectPose:
 
     def __init__(
         self,
-        markers: Mapping[int, Sequence[float]],
+        markers: Mapping[int | str, Sequence[float]],
         marker_length_m: float = 0.02,
         dictionary: str = "DICT_4X4_50",
         max_reprojection_px: float = 3.0,

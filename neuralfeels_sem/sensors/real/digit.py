@@ -10,7 +10,7 @@ per-pixel median as the background for the contact gate.
 from __future__ import annotations
 
 import logging
-from collections.abc import Mapping
+from collections.abc import Mapping, Sequence
 
 import cv2
 import numpy as np
@@ -138,22 +138,25 @@ class DigitCamera:
 
 
 class DigitArray:
-    """The hand's DIGITs: one serial per finger (fingers with an empty serial and no video are skipped
-    only when `serials` omits them)."""
+    """The hand's DIGITs: `fingers` in use, each with a serial (or a video file standing in)."""
 
     def __init__(
         self,
         serials: Mapping[str, str],
+        fingers: Sequence[str] = FINGERS,
         resolution: str = "QVGA",
         fps: int = 60,
         background_frames: int = 10,
         video_files: Mapping[str, str] | None = None,
     ) -> None:
+        unknown = set(fingers) - set(FINGERS)
+        if unknown:
+            raise ValueError(f"unknown fingers {sorted(unknown)}; expected a subset of {FINGERS}")
         video_files = dict(video_files or {})
-        fingers = [f for f in FINGERS if f in serials or f in video_files]
         self.cameras = [
             DigitCamera(
                 f, serials.get(f, ""), resolution, fps, background_frames, video_files.get(f)
             )
-            for f in fingers
+            for f in FINGERS
+            if f in fingers
         ]

@@ -61,7 +61,13 @@ def test_bad_video_and_bad_stream_settings() -> None:
 
 
 def test_array_keeps_finger_order_and_video_overrides() -> None:
-    array = DigitArray(serials={"thumb": "D1", "index": "D2"}, video_files={"ring": "r.avi"})
+    with pytest.raises(ValueError, match="pinky"):
+        DigitArray(serials={}, fingers=["pinky"])
+    array = DigitArray(
+        serials={"thumb": "D1", "index": "D2", "middle": "D3"},
+        fingers=["thumb", "ring", "index"],
+        video_files={"ring": "r.avi"},
+    )
     assert [(c.finger, c.serial, c.video_file) for c in array.cameras] == [
         ("index", "D2", None),
         ("ring", "", "r.avi"),

@@ -27,7 +27,9 @@ def test_frames_from_videos_and_a_can_hand_survive_a_dying_digit(tmp_path, caplo
     q_true = np.linspace(0.0, 0.6, 16)
     with FakeAllegro("real_sensor_test", q=q_true):
         sensor = RealSensor(
-            digit=DigitArray(serials={}, video_files=videos, background_frames=2),
+            digit=DigitArray(
+                serials={}, fingers=["index", "ring"], video_files=videos, background_frames=2
+            ),
             hand=AllegroCAN(channel="real_sensor_test", interface="virtual", timeout_s=0.5),
             duration_s=0.2,
             fps=50.0,
@@ -50,7 +52,9 @@ def test_frames_from_videos_and_a_can_hand_survive_a_dying_digit(tmp_path, caplo
 
 def test_every_missing_device_is_reported_on_its_own_line() -> None:
     sensor = RealSensor(
-        digit=DigitArray(serials={"index": "D20001", "thumb": "D20004"}),
+        digit=DigitArray(
+            serials={"index": "D20001", "thumb": "D20004"}, fingers=["index", "thumb"]
+        ),
         camera=RealSenseCamera(world_T_camera=[0.0] * 6),
         hand=AllegroCAN(channel="no_such_can9", interface="socketcan"),
     )
