@@ -73,3 +73,32 @@ def test_every_missing_device_is_reported_on_its_own_line() -> None:
 def test_no_device_configured() -> None:
     with pytest.raises(HardwareError, match="no device configured"):
         RealSensor().open()
+
+
+def test_a_hand_that_stops_answering_leaves_the_digits_running(tmp_path, caplog) -> None:
+    video = str(write_video(tmp_path / "thumb.avi", digit_like_frames(12, seed=3)))
+    with FakeAllegro("real_sensor_hand_loss", q=np.full(16, 0.2)) as fake:
+        sensor = RealSensor(
+            digit=DigitArray(
+                serials={}, fingers=["thumb"], video_files={"thumb": video}, background_frames=1
+            ),
+            hand=AllegroCAN(channel="real_sensor_hand_loss", interface="virtual", timeout_s=0.05),
+            duration_s=0.3,
+            fps=20.0,
+        )
+        frames = []
+        with caplog.at_level(logging.WARNING), sensor:
+            for frame in sensor.frames():
+                frames.append(frame)
+                if len(frames) == 3:
+                    fake.answering = False
+    assert len(frames) == 6
+    assert all(f.joint_positions is not None for f in frames[:3])
+    assert all(f.joint_positions is None for f in frames[3:])
+    assert all("thumb" in f.tactile for f in frames)
+    # DIGIT poses keep the last joint reading once the hand is gone.
+    np.testing.assert_array_equal(
+        frames[-1].tactile["thumb"].world_T_sensor, frames[2].tactile["thumb"].world_T_sensor
+    )
+    warnings = [r.getMessage() for r in caplog.records if "stopped answering" in r.getMessage()]
+    assert len(warnings) == 1 and "emergency stop" in warnings[0]
