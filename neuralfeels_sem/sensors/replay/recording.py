@@ -245,10 +245,33 @@ class RecordingReader:
                     self.records.append(json.loads(line))
                 except json.JSONDecodeError:
                     break
+        # Files are written by threads after their line: a killed run may lack the last ones.
+        while self.records and not self._complete(self.records[-1]):
+            self.records.pop()
         self._backgrounds: dict[str, np.ndarray | None] = {}
 
     def __len__(self) -> int:
         return len(self.records)
+
+    def _files(self, record: dict) -> list[Path]:
+        name = _name(record["index"])
+        files = [self.path / "tactile" / f / f"{name}.png" for f in record["tactile"]]
+        files += [
+            self.path / "gt" / "tactile" / f / f"{name}.npz"
+            for f, i in record["tactile"].items()
+            if i["gt"]
+        ]
+        if record["camera"] is not None:
+            files += [
+                self.path / "camera" / "rgb" / f"{name}.png",
+                self.path / "camera" / "depth" / f"{name}.npy",
+            ]
+            if record["camera"]["mask"]:
+                files.append(self.path / "camera" / "mask" / f"{name}.png")
+        return files
+
+    def _complete(self, record: dict) -> bool:
+        return all(path.is_file() for path in self._files(record))
 
     @property
     def class_names(self) -> list[str] | None:

@@ -59,6 +59,9 @@ def test_a_truncated_recording_keeps_its_complete_frames(tmp_path) -> None:
     lines = (tmp_path / "rec" / "frames.jsonl").read_text().splitlines()
     (tmp_path / "rec" / "frames.jsonl").write_text("\n".join(lines[:2]) + "\n" + lines[2][:40])
     assert len(RecordingReader(tmp_path / "rec")) == 2
+    # a frame whose image files were never written (killed before the writer threads finished)
+    (tmp_path / "rec" / "camera" / "depth" / "000001.npy").unlink()
+    assert len(RecordingReader(tmp_path / "rec")) == 1
 
 
 def test_writer_refuses_to_overwrite(tmp_path) -> None:
