@@ -28,3 +28,19 @@ def test_multirun_two_jobs_and_aggregate(tmp_path: Path, launcher: str) -> None:
     assert summary["groups"][0]["metrics"]["cpu_count"]["n"] == 2
     assert (sweep_dir / "summary.csv").read_text().startswith("metric,mean,std,n")
     assert (sweep_dir / "summary.png").stat().st_size > 1000
+
+
+def test_aggregate_marks_corrupt_and_failed_jobs(tmp_path: Path) -> None:
+    from neuralfeels_sem.eval.aggregate import summarize
+
+    for job, content in (("0", '{"matching_pct": 90.0}'), ("1", '{"matching_pct": 8'), ("2", None)):
+        (tmp_path / job / ".hydra").mkdir(parents=True)
+        (tmp_path / job / ".hydra" / "overrides.yaml").write_text(f"- seed={job}\n")
+        if content is None:
+            (tmp_path / job / "error.txt").write_text("DataError: boom\n")
+        else:
+            (tmp_path / job / "metrics.json").write_text(content)
+    summary = summarize(tmp_path)
+    assert [j["status"] for j in summary["jobs"]] == ["ok", "failed", "failed"]
+    assert summary["failed"] == ["1", "2"]
+    assert summary["groups"][0]["metrics"]["matching_pct"] == {"mean": 90.0, "std": 0.0, "n": 1}

@@ -58,7 +58,12 @@ def read_job(job_dir: Path) -> dict | None:
     for name in RESULT_FILES:
         path = job_dir / name
         if path.exists():
-            job["metrics"] = flatten_numbers(json.loads(path.read_text()))
+            try:
+                job["metrics"] = flatten_numbers(json.loads(path.read_text()))
+            except ValueError as exc:  # a truncated or corrupt file fails this job, not the summary
+                job["status"] = "failed"
+                job["error"] = f"{name} is unreadable: {exc}"
+                return job
             job["status"] = "ok"
             break
     return job

@@ -54,9 +54,8 @@ def run(cfg: DictConfig) -> dict:
     out = run_dir / "eval"
     out.mkdir(exist_ok=True)
     obj = instantiate(run_cfg.object)
-    class_names = list(run_cfg.materials)
     bound = BOUND_MARGIN * obj.bounds_radius
-    mapper = build_mapper(run_cfg, len(class_names), bound, resolve_device(cfg.device))
+    mapper = build_mapper(run_cfg, bound, resolve_device(cfg.device))
     resumed = load_checkpoint(run_dir / "checkpoint.pt", mapper, model_config(run_cfg))
     # The current eval settings (so a run can be re-scored more finely), the run's own object.
     scorer = build_scorer(OmegaConf.merge(run_cfg, {"eval": cfg.eval}), obj)

@@ -51,17 +51,11 @@ def build_scorer(cfg: DictConfig, obj) -> RunScorer:
     )
 
 
-def build_mapper(cfg: DictConfig, num_classes: int, bound: float, device):
+def build_mapper(cfg: DictConfig, bound: float, device):
     field = instantiate(cfg.model, bound=bound)
     optimizer_factory = instantiate(cfg.mapping.optimizer)
-    mapper = instantiate(
-        cfg.mapping.mapper,
-        field=field,
-        optimizer_factory=optimizer_factory,
-        num_classes=num_classes,
-        seed=cfg.seed,
-        device=device,
-    )
+    # mapping.mapper is a partial: the field and the run's device are known only here.
+    mapper = instantiate(cfg.mapping.mapper)(field=field, optimizer_factory=optimizer_factory, device=device)
     return mapper
 
 
@@ -77,7 +71,7 @@ def run(cfg: DictConfig) -> dict:
     classifier = instantiate(cfg.classifier)
     device = resolve_device(cfg.device)
     bound = BOUND_MARGIN * obj.bounds_radius
-    mapper = build_mapper(cfg, len(class_names), bound, device)
+    mapper = build_mapper(cfg, bound, device)
     scorer = build_scorer(cfg, obj)
     snapshots_dir = out / "progression"
     snapshots_dir.mkdir(exist_ok=True)
