@@ -10,7 +10,7 @@ from neuralfeels_sem.configs import validate_config
 from neuralfeels_sem.configs.object import SHIPPED_OBJECTS
 from neuralfeels_sem.errors import ConfigError
 from neuralfeels_sem.objects.material_object import MaterialObject
-from tests.helpers import CONF_DIR, compose_config
+from tests.helpers import CONF_DIR, compose_config, run_cli
 
 
 def test_every_shipped_object_has_a_yaml() -> None:
@@ -58,3 +58,15 @@ def test_bad_values_fail_validation_with_one_line(overrides: list[str], message:
     with pytest.raises(ConfigError, match=message) as info:
         validate_config(cfg)
     assert "\n" not in str(info.value)
+
+
+def test_cli_bad_object_values_exit_with_one_line() -> None:
+    result = run_cli(["task=info", "object=custom", "object.rescale_to=-1"])
+    assert result.returncode == 2, result.stderr
+    errors = [line for line in result.stderr.splitlines() if line.startswith("error:")]
+    assert errors == [
+        "error: invalid config: object.rescale_to=-1.0 must be in (0, 1] metres, or null"
+    ]
+    unknown = run_cli(["task=info", "object=plushy"])
+    assert unknown.returncode != 0
+    assert "object/plushy" in unknown.stderr and "Traceback" not in unknown.stderr
