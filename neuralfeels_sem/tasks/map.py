@@ -23,6 +23,7 @@ from tqdm import tqdm
 
 from neuralfeels_sem.errors import NoDataError
 from neuralfeels_sem.mapping.checkpoint import load_checkpoint, save_checkpoint
+from neuralfeels_sem.mapping.pose_source import build_pose_source
 from neuralfeels_sem.sensors.factory import build_sensor
 from neuralfeels_sem.tasks.map_metrics import RunScorer
 from neuralfeels_sem.tasks.map_outputs import print_summary, write_pictures
@@ -55,7 +56,9 @@ def build_mapper(cfg: DictConfig, bound: float, device):
     field = instantiate(cfg.model, bound=bound)
     optimizer_factory = instantiate(cfg.mapping.optimizer)
     # mapping.mapper is a partial: the field and the run's device are known only here.
-    mapper = instantiate(cfg.mapping.mapper)(field=field, optimizer_factory=optimizer_factory, device=device)
+    mapper = instantiate(cfg.mapping.mapper)(
+        field=field, optimizer_factory=optimizer_factory, device=device
+    )
     return mapper
 
 
@@ -73,6 +76,7 @@ def run(cfg: DictConfig) -> dict:
     bound = BOUND_MARGIN * obj.bounds_radius
     mapper = build_mapper(cfg, bound, device)
     scorer = build_scorer(cfg, obj)
+    pose_source = build_pose_source(cfg.mapping.pose, obj)
     snapshots_dir = out / "progression"
     snapshots_dir.mkdir(exist_ok=True)
 
@@ -86,6 +90,7 @@ def run(cfg: DictConfig) -> dict:
         resumed = load_checkpoint(cfg.mapping.resume, mapper, model_config(cfg))
         start_index = resumed["frame_index"]
         scorer.load_state(resumed["extra"].get("scorer", {}))
+        pose_source.load_state(resumed["extra"].get("pose", {}))
         log.info("resumed from %s after frame %d", cfg.mapping.resume, start_index)
 
     every_k = int(cfg.eval.every_k_frames)
@@ -112,14 +117,17 @@ def run(cfg: DictConfig) -> dict:
                 else {}
             )
             scorer.log_touches(frame, labels)
-            mapper.add_frame(frame, labels)
+            world_T_object = pose_source.estimate(frame, mapper)
+            mapper.add_frame(frame, labels, world_T_object=world_T_object)
             processed += 1
             last_index = frame.index
             first_time = frame.time_s if first_time is None else first_time
             last_time = frame.time_s
             is_last = total is not None and frame.index == total - 1
             if frame.index % every_k == 0 or is_last:
-                pct = scorer.score(mapper.field, frame.index, frame.time_s)
+                pct = scorer.score(
+                    mapper.field, frame.index, frame.time_s, pose_source.field_T_gt_object()
+                )
                 elapsed = time.perf_counter() - wall_start
                 bar.set_postfix(
                     t=f"{frame.time_s:.1f}s",
@@ -127,13 +135,20 @@ def run(cfg: DictConfig) -> dict:
                     match="n/a" if pct is None else f"{pct:.1f}%",
                 )
             if frame.index % snapshot_every == 0 or is_last:
-                take_snapshot(scorer, mapper.field, frame.time_s, frame.index, snapshots_dir)
+                take_snapshot(
+                    scorer,
+                    mapper.field,
+                    frame.time_s,
+                    frame.index,
+                    snapshots_dir,
+                    pose_source.field_T_gt_object(),
+                )
             if checkpoint_every and frame.index % checkpoint_every == 0:
                 save_checkpoint(
                     checkpoint_path,
                     mapper,
                     frame.index,
-                    {"scorer": scorer.state()},
+                    {"scorer": scorer.state(), "pose": pose_source.state()},
                     model_config(cfg),
                 )
         bar.close()
@@ -149,12 +164,16 @@ def run(cfg: DictConfig) -> dict:
             "check that the object is in view and the fingers touch it (sensor config)"
         )
     save_checkpoint(
-        checkpoint_path, mapper, last_index, {"scorer": scorer.state()}, model_config(cfg)
+        checkpoint_path,
+        mapper,
+        last_index,
+        {"scorer": scorer.state(), "pose": pose_source.state()},
+        model_config(cfg),
     )
     if not scorer.curve or scorer.curve[-1][0] != last_index:
-        scorer.score(mapper.field, last_index, last_time or 0.0)
+        scorer.score(mapper.field, last_index, last_time or 0.0, pose_source.field_T_gt_object())
 
-    final, mesh = scorer.field_metrics(mapper.field, bound)
+    final, mesh = scorer.field_metrics(mapper.field, bound, pose_source.field_T_gt_object())
     if mesh is not None:
         mesh.export(out / "material_mesh.ply")
     sensor_time = (last_time - first_time + frame_period) if first_time is not None else 0.0
@@ -177,6 +196,8 @@ def run(cfg: DictConfig) -> dict:
             for k in ("matching_pct", "matching_pct_image", "fscore_5mm", "chamfer_mm")
         },
         "trained_on": trained_on,
+        "pose_source": pose_source.name,
+        **pose_source.metrics(),
         "notes": scorer.notes + ([final["shape_note"]] if "shape_note" in final else []),
         "config": {
             "object": cfg.object.name,
@@ -192,6 +213,7 @@ def run(cfg: DictConfig) -> dict:
     write_touches(scorer.touch_log, class_names, out / "touches.csv")
     if cfg.viz.plots:
         write_pictures(scorer, metrics, snapshots_dir, out, int(cfg.viz.dpi))
+        pose_source.write_pictures(out, int(cfg.viz.dpi))
     print_summary(metrics, out)
     return metrics
 

@@ -24,15 +24,24 @@ from neuralfeels_sem.mapping.mesh import extract_mesh
 from neuralfeels_sem.objects.material_object import MaterialObject
 from neuralfeels_sem.perception.touch import TouchLabel
 from neuralfeels_sem.sensors.frame import Frame
+from neuralfeels_sem.utils.geometry import transform_points
 
 log = logging.getLogger(__name__)
 
 
-def material_predictor(field: nn.Module, chunk: int = 65536) -> Callable[[np.ndarray], np.ndarray]:
-    """(N,3) object-frame points -> (N,) predicted class, evaluated in chunks without gradients."""
+def material_predictor(
+    field: nn.Module, field_T_gt: np.ndarray | None = None, chunk: int = 65536
+) -> Callable[[np.ndarray], np.ndarray]:
+    """(N,3) ground-truth object-frame points -> (N,) predicted class, in chunks without gradients.
+
+    `field_T_gt` maps ground-truth object coordinates into the field's frame (identity when
+    the field was trained with ground-truth poses).
+    """
     device = next(field.parameters()).device
 
     def predict(points: np.ndarray) -> np.ndarray:
+        if field_T_gt is not None:
+            points = transform_points(field_T_gt, np.asarray(points, dtype=np.float64))
         x = torch.as_tensor(np.asarray(points, dtype=np.float32), device=device)
         return evaluate_chunked(field.predict_material, x, chunk).cpu().numpy().astype(np.int64)
 
@@ -92,16 +101,26 @@ class RunScorer:
                 ]
             )
 
-    def score(self, field: nn.Module, frame_index: int, time_s: float) -> float | None:
+    def score(
+        self,
+        field: nn.Module,
+        frame_index: int,
+        time_s: float,
+        field_T_gt: np.ndarray | None = None,
+    ) -> float | None:
         if self.matching is None:
             return None
-        pct = self.matching.score(material_predictor(field))
+        pct = self.matching.score(material_predictor(field, field_T_gt))
         self.curve.append([int(frame_index), float(time_s), pct])
         return pct
 
-    def snapshot(self, field: nn.Module, time_s: float) -> None:
+    def snapshot(
+        self, field: nn.Module, time_s: float, field_T_gt: np.ndarray | None = None
+    ) -> None:
         if self.images is not None:
-            self.snapshots.append((float(time_s), self.images.maps(material_predictor(field))))
+            self.snapshots.append(
+                (float(time_s), self.images.maps(material_predictor(field, field_T_gt)))
+            )
 
     # ---------------------------------------------------------------- summaries
     def classifier_accuracy(self) -> dict:
@@ -110,10 +129,16 @@ class RunScorer:
             acc.update(finger, int(predicted), None if gt < 0 else int(gt))
         return acc.summary(self.class_names)
 
-    def field_metrics(self, field: nn.Module, bound: float) -> tuple[dict, object | None]:
-        """Matching (3D + image form, per class) and shape metrics of a field; also its mesh."""
+    def field_metrics(
+        self, field: nn.Module, bound: float, field_T_gt: np.ndarray | None = None
+    ) -> tuple[dict, object | None]:
+        """Matching (3D + image form, per class) and shape metrics of a field; also its mesh.
+
+        The mesh is returned in the field's frame; shape metrics compare it in the
+        ground-truth object frame.
+        """
         out: dict = {}
-        predict = material_predictor(field)
+        predict = material_predictor(field, field_T_gt)
         if self.matching is not None:
             result = self.matching.evaluate(predict)
             out["matching_pct"] = result["matching_pct"]
