@@ -67,10 +67,19 @@ def model_config(cfg: DictConfig) -> dict:
 
 
 def run(cfg: DictConfig) -> dict:
-    out = output_dir()
     class_names = list(cfg.materials)
     obj = instantiate(cfg.object)
     sensor = build_sensor(cfg.sensor, obj, class_names)
+    sensor.open()  # a missing device ends the run here, before any heavy work
+    try:
+        return map_object(cfg, obj, sensor, output_dir())
+    finally:
+        sensor.close()
+
+
+def map_object(cfg: DictConfig, obj, sensor, out: Path) -> dict:
+    """The mapping loop over an opened sensor; writes every run output into `out`."""
+    class_names = list(cfg.materials)
     classifier = instantiate(cfg.classifier)
     device = resolve_device(cfg.device)
     bound = BOUND_MARGIN * obj.bounds_radius
@@ -98,60 +107,58 @@ def run(cfg: DictConfig) -> dict:
     checkpoint_path = out / "checkpoint.pt"
     processed = 0
     first_time = last_time = None
-    frame_period = 0.0
     last_index = start_index
+    total = len(sensor) if len(sensor) > 0 else None
+    frame_period = float(getattr(sensor, "frame_period_s", 0.0))
+    snapshot_every = max(1, (total or 100) // max(1, int(cfg.viz.progression_snapshots)))
     wall_start = time.perf_counter()
-    with sensor:
-        total = len(sensor) if len(sensor) > 0 else None
-        frame_period = float(getattr(sensor, "frame_period_s", 0.0))
-        snapshot_every = max(1, (total or 100) // max(1, int(cfg.viz.progression_snapshots)))
-        bar = tqdm(total=total, desc="map", unit="frame", dynamic_ncols=True)
-        for frame in sensor.frames():
-            bar.update(1)
-            if frame.index <= start_index:
-                continue  # already in the checkpoint
-            readings = list(frame.tactile.values())
-            labels = (
-                {r.finger: lab for r, lab in zip(readings, classifier.classify(readings))}
-                if readings
-                else {}
+    bar = tqdm(total=total, desc="map", unit="frame", dynamic_ncols=True)
+    for frame in sensor.frames():
+        bar.update(1)
+        if frame.index <= start_index:
+            continue  # already in the checkpoint
+        readings = list(frame.tactile.values())
+        labels = (
+            {r.finger: lab for r, lab in zip(readings, classifier.classify(readings))}
+            if readings
+            else {}
+        )
+        scorer.log_touches(frame, labels)
+        world_T_object = pose_source.estimate(frame, mapper)
+        mapper.add_frame(frame, labels, world_T_object=world_T_object)
+        processed += 1
+        last_index = frame.index
+        first_time = frame.time_s if first_time is None else first_time
+        last_time = frame.time_s
+        is_last = total is not None and frame.index == total - 1
+        if frame.index % every_k == 0 or is_last:
+            pct = scorer.score(
+                mapper.field, frame.index, frame.time_s, pose_source.field_T_gt_object()
             )
-            scorer.log_touches(frame, labels)
-            world_T_object = pose_source.estimate(frame, mapper)
-            mapper.add_frame(frame, labels, world_T_object=world_T_object)
-            processed += 1
-            last_index = frame.index
-            first_time = frame.time_s if first_time is None else first_time
-            last_time = frame.time_s
-            is_last = total is not None and frame.index == total - 1
-            if frame.index % every_k == 0 or is_last:
-                pct = scorer.score(
-                    mapper.field, frame.index, frame.time_s, pose_source.field_T_gt_object()
-                )
-                elapsed = time.perf_counter() - wall_start
-                bar.set_postfix(
-                    t=f"{frame.time_s:.1f}s",
-                    fps=f"{processed / max(elapsed, 1e-9):.2f}",
-                    match="n/a" if pct is None else f"{pct:.1f}%",
-                )
-            if frame.index % snapshot_every == 0 or is_last:
-                take_snapshot(
-                    scorer,
-                    mapper.field,
-                    frame.time_s,
-                    frame.index,
-                    snapshots_dir,
-                    pose_source.field_T_gt_object(),
-                )
-            if checkpoint_every and frame.index % checkpoint_every == 0:
-                save_checkpoint(
-                    checkpoint_path,
-                    mapper,
-                    frame.index,
-                    {"scorer": scorer.state(), "pose": pose_source.state()},
-                    model_config(cfg),
-                )
-        bar.close()
+            elapsed = time.perf_counter() - wall_start
+            bar.set_postfix(
+                t=f"{frame.time_s:.1f}s",
+                fps=f"{processed / max(elapsed, 1e-9):.2f}",
+                match="n/a" if pct is None else f"{pct:.1f}%",
+            )
+        if frame.index % snapshot_every == 0 or is_last:
+            take_snapshot(
+                scorer,
+                mapper.field,
+                frame.time_s,
+                frame.index,
+                snapshots_dir,
+                pose_source.field_T_gt_object(),
+            )
+        if checkpoint_every and frame.index % checkpoint_every == 0:
+            save_checkpoint(
+                checkpoint_path,
+                mapper,
+                frame.index,
+                {"scorer": scorer.state(), "pose": pose_source.state()},
+                model_config(cfg),
+            )
+    bar.close()
     wall_s = time.perf_counter() - wall_start
 
     trained_on = mapper.trained_on
