@@ -1,0 +1,97 @@
+"""task=collect_tactile writes a balanced ImageFolder tactile set with a manifest."""
+
+from __future__ import annotations
+
+import json
+from pathlib import Path
+
+import cv2
+import numpy as np
+import pytest
+import trimesh
+
+from neuralfeels_sem.errors import ConfigError, DataError
+from neuralfeels_sem.sim.touch_sources import primitive_objects, sample_touch
+from neuralfeels_sem.tasks.collect_tactile import run
+from tests.helpers import compose_config, run_cli
+
+CLASSES = ["plastic", "metal", "fabric", "wood"]
+
+
+def _cfg(root: Path, *extra: str):
+    return compose_config(
+        [
+            "task=collect_tactile",
+            f"task.root={root}",
+            "task.samples_per_class_per_sensor=2",
+            "task.library_objects=[]",
+            "task.sensors=[index,thumb]",
+            *extra,
+        ]
+    )
+
+
+def test_writes_a_balanced_dataset_with_manifest(tmp_path: Path) -> None:
+    root = tmp_path / "tactile"
+    result = run(_cfg(root))
+    assert result["total"] == 2 * 4 * 2
+    for sensor in ("index", "thumb"):
+        for material in CLASSES:
+            files = sorted((root / sensor / material).glob("*.png"))
+            assert [f.name for f in files] == ["00000.png", "00001.png"]
+            image = cv2.imread(str(files[0]))
+            assert image.shape == (320, 240, 3)
+        background = cv2.imread(str(root / "_backgrounds" / f"{sensor}.png"))
+        assert background.shape == (320, 240, 3)
+    # The two sensors are different DIGITs: different backgrounds.
+    a = cv2.imread(str(root / "_backgrounds" / "index.png")).astype(int)
+    b = cv2.imread(str(root / "_backgrounds" / "thumb.png")).astype(int)
+    assert np.abs(a - b).mean() > 1.0
+    manifest = json.loads((root / "manifest.json").read_text())
+    assert manifest["counts"] == {s: dict.fromkeys(CLASSES, 2) for s in ("index", "thumb")}
+    assert manifest["classes"] == CLASSES and manifest["seed"] == 0
+    assert manifest["renderer_seeds"] == {"index": 0, "thumb": 3}
+    assert sum(manifest["objects"]["index"]["fabric"].values()) == 2
+    # Images show contact: they differ from the sensor's background.
+    image = cv2.imread(str(root / "thumb" / "wood" / "00000.png")).astype(int)
+    assert np.abs(image - b).max() > 40
+
+
+def test_refuses_a_non_empty_root_and_unknown_objects(tmp_path: Path) -> None:
+    root = tmp_path / "tactile"
+    root.mkdir()
+    (root / "old.txt").write_text("x")
+    with pytest.raises(DataError, match="overwrite"):
+        run(_cfg(root))
+    with pytest.raises(ConfigError, match="nope"):
+        run(_cfg(tmp_path / "other", "task.library_objects=[nope]"))
+
+
+def test_touch_samples_lie_on_the_labelled_faces() -> None:
+    objects = primitive_objects(CLASSES)
+    assert len(objects) == 6 * len(CLASSES)
+    rng = np.random.default_rng(0)
+    for obj in objects[:6]:
+        for _ in range(5):
+            touch = sample_touch(obj, 0, rng)
+            _, distance, _ = trimesh.proximity.closest_point(obj.mesh, touch.point[None])
+            assert distance[0] < 1e-5  # trimesh closest_point is approximate on sliver faces
+            assert touch.normal @ (touch.point - obj.mesh.centroid) > 0  # outward on a convex shape
+            assert np.linalg.norm(touch.normal) == pytest.approx(1.0)
+    with pytest.raises(ValueError):
+        sample_touch(objects[0], 3, rng)  # a plastic primitive has no wood faces
+
+
+def test_cli_bad_object_exits_2_with_one_line(tmp_path: Path) -> None:
+    result = run_cli(
+        [
+            "task=collect_tactile",
+            f"task.root={tmp_path / 'x'}",
+            "task.library_objects=[nope]",
+            f"hydra.run.dir={tmp_path / 'run'}",
+        ]
+    )
+    assert result.returncode == 2, result.stderr[-2000:]
+    errors = [line for line in result.stderr.splitlines() if line.startswith("error:")]
+    assert len(errors) == 1 and "nope" in errors[0]
+    assert "Traceback" not in result.stderr
