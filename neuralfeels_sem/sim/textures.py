@@ -153,10 +153,10 @@ class WoodTexture(MicroTexture):
     def __init__(self, seed: int = 0, scale: float = 1.0) -> None:
         super().__init__(seed, scale)
         # Pith off the object centre, so rings cross any surface at varied angles.
-        self._centre = self._rng.uniform(-0.05, 0.05, 2).astype(np.float32)
+        self._centre = self._rng.uniform(-0.02, 0.02, 2).astype(np.float32)
         # Ring wobble and fibres vary only across the grain (x, y): wood is straight along z.
         self._distort = _Waves.random(
-            self._rng, 4, (4e-3, 12e-3), plane_normal=np.array([0.0, 0.0, 1.0])
+            self._rng, 4, (3e-3, 8e-3), plane_normal=np.array([0.0, 0.0, 1.0])
         )
         self._fibres = _Waves.random(
             self._rng, 6, (0.15e-3, 0.4e-3), plane_normal=np.array([0.0, 0.0, 1.0])
@@ -164,7 +164,7 @@ class WoodTexture(MicroTexture):
 
     def _relief(self, points: np.ndarray, normal: np.ndarray | None) -> np.ndarray:
         r = np.hypot(points[:, 0] - self._centre[0], points[:, 1] - self._centre[1])
-        r = r + 0.25e-3 * self._distort(points)
+        r = r + 0.3e-3 * self._distort(points)
         f = np.mod(r / self.ring_period_m, 1.0)
         # Early wood rises slowly, late wood drops sharply: an asymmetric ring profile.
         ring = f**3 - 0.5
