@@ -44,7 +44,7 @@ setup(
     python_requires=">=3.10",
     packages=find_packages(include=["neuralfeels_sem", "neuralfeels_sem.*"]),
     include_package_data=True,
-    package_data={"neuralfeels_sem": ["assets/**/*"]},
+    package_data={"neuralfeels_sem": ["assets/**/*", "objects/examples/*"]},
     install_requires=INSTALL_REQUIRES,
     extras_require=EXTRAS,
 )

@@ -226,12 +226,17 @@ def map_object(cfg: DictConfig, obj, sensor, out: Path) -> dict:
 
 
 def take_snapshot(
-    scorer: RunScorer, field, time_s: float, frame_index: int, directory: Path
+    scorer: RunScorer,
+    field,
+    time_s: float,
+    frame_index: int,
+    directory: Path,
+    field_T_gt: np.ndarray,
 ) -> None:
     """Progression snapshots go to disk at once, so a resumed run still has the early ones."""
     if scorer.images is None:
         return
-    scorer.snapshot(field, time_s)
+    scorer.snapshot(field, time_s, field_T_gt)
     _, maps = scorer.snapshots.pop()
     np.savez_compressed(
         directory / f"{frame_index:06d}.npz",

@@ -12,6 +12,7 @@ import sys
 from pathlib import Path
 
 from hydra.core.hydra_config import HydraConfig
+from hydra.errors import InstantiationException
 from hydra.types import RunMode
 from hydra.utils import get_method
 from omegaconf import DictConfig
@@ -40,12 +41,19 @@ def _is_multirun() -> bool:
 
 def run_task(cfg: DictConfig) -> float | None:
     try:
-        validate_config(cfg)
-        seed_everything(int(cfg.seed))
-        task = get_method(cfg.task._target_)
-        result = task(cfg)
+        try:
+            validate_config(cfg)
+            seed_everything(int(cfg.seed))
+            task = get_method(cfg.task._target_)
+            result = task(cfg)
+        except InstantiationException as exc:
+            # Hydra wraps what a constructor raises; a user error inside keeps its one line.
+            if isinstance(exc.__cause__, UserError):
+                raise exc.__cause__ from None
+            raise
     except UserError as exc:
-        log.error("%s", exc)
+        # Hydra's console handler also writes to stderr: log to the run's log file only.
+        log.debug("%s: %s", type(exc).__name__, exc)
         if _is_multirun():
             (output_dir() / "error.txt").write_text(f"{type(exc).__name__}: {exc}\n")
             return None

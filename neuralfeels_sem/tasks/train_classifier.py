@@ -12,10 +12,12 @@ from __future__ import annotations
 
 import json
 import logging
+import os
 from dataclasses import asdict
 from pathlib import Path
 
 import numpy as np
+import torch
 from hydra.utils import instantiate
 from omegaconf import DictConfig
 
@@ -115,6 +117,10 @@ def run(cfg: DictConfig) -> dict:
     )
 
     device = resolve_device(cfg.classifier.device)
+    if device.type == "cpu" and os.environ.get("OMP_NUM_THREADS", "").isdigit():
+        # All cores by default; an explicit OMP_NUM_THREADS wins (a shared, busy machine
+        # trains faster on fewer threads than on oversubscribed ones).
+        torch.set_num_threads(int(os.environ["OMP_NUM_THREADS"]))
     settings = TrainSettings(
         batch_size=task.batch_size,
         lr=task.lr,
