@@ -46,6 +46,7 @@ from neuralfeels_sem.sim.pyrender_utils import (
 from neuralfeels_sem.sim.textures import MicroTexture, compliance_for, specular_for, texture_for
 from neuralfeels_sem.utils.geometry import Intrinsics, check_pose, invert_pose
 
+MAX_RELIEF_M = 0.1e-3  # above every texture's highest relief (fabric threads + fuzz: ~60 um)
 _NOISE_FRAMES, _NOISE_PAD = 8, 64  # noise bank: frames, extra rows/columns for random windows
 PIXEL_M = GEL_WIDTH_M / DIGIT_WIDTH  # gel-plane size of one pixel (75 um)
 SOFT_REACH_M = (
@@ -142,6 +143,9 @@ class DigitRenderer:
             [compliance_for(n, compliance) for n in names] + [compliance_for("")], np.float32
         )
         self._specular = np.array([specular_for(n) for n in names] + [0.0], np.float32)
+        self._reach = (
+            GEL_DISTANCE_M + MAX_RELIEF_M * texture_scale + SOFT_REACH_M * self._compliance
+        )
 
         self._scene = pyrender.Scene(bg_color=[0, 0, 0, 0], ambient_light=[0, 0, 0])
         self._nodes: list[pyrender.Node] = []
@@ -151,7 +155,10 @@ class DigitRenderer:
             self._nodes.append(node)
             self._seg_map[node] = seg_colour(label)
         # The scene is in the sensor frame: the camera is fixed, the object moves.
-        camera = intrinsics_camera(DIGIT_INTRINSICS, znear=1e-3, zfar=GEL_DISTANCE_M + 0.02)
+        # Far plane just past the deepest reach: the rasteriser skips the rest of the object.
+        camera = intrinsics_camera(
+            DIGIT_INTRINSICS, znear=1e-3, zfar=float(self._reach.max()) + 1e-3
+        )
         self._scene.add(camera, pose=opengl_camera_pose(np.eye(4)))
         self._gl = LazyOffscreen(DIGIT_WIDTH, DIGIT_HEIGHT)
 
@@ -193,7 +200,8 @@ class DigitRenderer:
         gt_material = np.where(contact, labels, IGNORE).astype(np.int16)
 
         image = self.background_image.astype(np.float32)
-        reach = GEL_DISTANCE_M + SOFT_REACH_M * float(self._compliance.max()) + 0.2e-3
+        # Pixels the gel can feel: soft materials and texture relief reach past the surface.
+        reach = self._reach[np.where(labels == IGNORE, len(self._textures), labels)]
         near = hit & (depth < reach)
         if near.any():
             object_T_sensor = invert_pose(world_T_object) @ world_T_sensor
@@ -240,16 +248,20 @@ class DigitRenderer:
         z = d[v, u]
         uf, vf = u.astype(np.float32), v.astype(np.float32)
         k = DIGIT_INTRINSICS
-        pts_s = np.stack(
-            [(uf + (c0 - k.cx)) * (z / k.fx), (vf + (r0 - k.cy)) * (z / k.fy), z], axis=1
+        rot = object_T_sensor[:3, :3].astype(np.float32)
+        xs, ys = (
+            (uf + np.float32(c0 - k.cx)) * (z / np.float32(k.fx)),
+            (vf + np.float32(r0 - k.cy)) * (z / np.float32(k.fy)),
         )
-        pts_o = pts_s @ object_T_sensor[:3, :3].T.astype(np.float32) + object_T_sensor[
-            :3, 3
-        ].astype(np.float32)
+        pts_o = np.empty((len(z), 3), np.float32)
+        for i in range(3):
+            pts_o[:, i] = (
+                rot[i, 0] * xs + rot[i, 1] * ys + rot[i, 2] * z + np.float32(object_T_sensor[i, 3])
+            )
         # The touched surface faces the camera: its normal is the sensor's -z in the object frame.
         normal_o = -object_T_sensor[:3, 2]
         lut_vu = lut[v, u]
-        present = np.unique(lut_vu)
+        present = np.nonzero(np.bincount(lut_vu, minlength=len(self._textures) + 1))[0]
         relief = np.empty(len(z), np.float32)
         for idx in present:
             sel = slice(None) if len(present) == 1 else lut_vu == idx

@@ -184,3 +184,16 @@ def test_materials_give_statistically_different_images_at_equal_press() -> None:
     assert max(MATERIALS, key=lambda m: spectra[m][1:3].sum()) == "fabric"
     assert max(MATERIALS, key=lambda m: spectra[m][5:7].sum()) == "wood"
     assert min(energy.values()) > 0.5  # every texture is visible through the gel
+
+
+def test_no_texture_rises_above_the_renderers_reach_margin() -> None:
+    from neuralfeels_sem.sim.tactile_renderer import MAX_RELIEF_M
+
+    pts = np.random.default_rng(5).uniform(-0.03, 0.03, (100000, 3)).astype(np.float32)
+    for name in (*MATERIALS, "unknown"):
+        for normal in (
+            np.array([0.0, 0.0, 1.0]),
+            np.array([0.6, 0.0, 0.8]),
+            np.array([0.3, 0.5, 0.81]),
+        ):
+            assert texture_for(name, seed=1).height(pts, normal).max() < MAX_RELIEF_M
