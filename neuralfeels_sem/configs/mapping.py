@@ -15,13 +15,26 @@ TACTILE_DEPTH_SOURCES = ("gt", "image")
 
 @dataclass
 class OptimizerConfig:
-    _target_: str = "torch.optim.Adam"
+    """FieldAdam takes the hash grid's row-sparse gradients (model.encoding.sparse_grad)."""
+
+    _target_: str = "neuralfeels_sem.fields.optim.FieldAdam"
     _partial_: bool = True
     lr: float = 3.0e-3
+    betas: list[float] = field(default_factory=lambda: [0.9, 0.999])
+    eps: float = 1.0e-8
+    weight_decay: float = 0.0
 
     def __post_init__(self) -> None:
         if self.lr <= 0:
             raise ValueError(f"mapping.optimizer.lr={self.lr} must be > 0")
+        if len(self.betas) != 2 or not all(0.0 <= b < 1.0 for b in self.betas):
+            raise ValueError(
+                f"mapping.optimizer.betas={list(self.betas)} must be two values in [0, 1)"
+            )
+        if self.eps < 0 or self.weight_decay < 0:
+            raise ValueError(
+                f"mapping.optimizer eps={self.eps} and weight_decay={self.weight_decay} must be >= 0"
+            )
 
 
 @dataclass

@@ -10,6 +10,7 @@ import pytest
 import torch
 
 from neuralfeels_sem.errors import ConfigError, DataError
+from neuralfeels_sem.fields.optim import FieldAdam
 from neuralfeels_sem.mapping import checkpoint as checkpoint_module
 from neuralfeels_sem.mapping.checkpoint import load_checkpoint, save_checkpoint
 from neuralfeels_sem.mapping.mapper import OnlineMapper
@@ -22,13 +23,13 @@ def make_mapper(init_seed: int = 0, log2_table_size: int = 12) -> OnlineMapper:
     torch.manual_seed(init_seed)
     return OnlineMapper(
         small_field(log2_table_size=log2_table_size),
-        functools.partial(torch.optim.Adam, lr=3e-3),
+        functools.partial(FieldAdam, lr=3e-3),
         num_classes=2,
         steps_per_frame=2,
         warmup_steps=4,
-        camera_rays=64,
-        tactile_rays=32,
-        material_points=32,
+        camera_rays=32,
+        tactile_rays=16,
+        material_points=16,
         window_recent=2,
         window_by_loss=1,
         seed=3,

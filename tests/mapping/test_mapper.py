@@ -1,0 +1,151 @@
+"""OnlineMapper on analytic sphere scenes: points, counts, SDF fit, material split, label gating."""
+
+from __future__ import annotations
+
+import functools
+
+import numpy as np
+import pytest
+import torch
+
+from neuralfeels_sem.errors import ConfigError, NoDataError
+from neuralfeels_sem.fields.optim import FieldAdam
+from neuralfeels_sem.mapping.mapper import OnlineMapper, resolve_pose_source
+from neuralfeels_sem.perception.touch import TouchLabel
+from neuralfeels_sem.sensors.frame import Frame
+from neuralfeels_sem.utils.geometry import rotation_matrix
+from tests.mapping.synthetic import (
+    RADIUS,
+    fibonacci_directions,
+    small_field,
+    sphere_frames,
+    sphere_surface,
+    true_label,
+)
+
+
+def make_mapper(concat: bool = True, **kwargs) -> OnlineMapper:
+    torch.manual_seed(0)
+    args = dict(
+        steps_per_frame=10, warmup_steps=40, camera_rays=128, tactile_rays=64,
+        band_samples=3, free_samples=2, material_points=256, seed=0,
+    )  # fmt: skip
+    args.update(kwargs)
+    return OnlineMapper(
+        small_field(concat=concat, log2_table_size=14),
+        functools.partial(FieldAdam, lr=3e-3),
+        2,
+        **args,
+    )
+
+
+def test_frame_points_use_the_given_pose() -> None:
+    frame, _ = sphere_frames(1, touches_per_frame=2)[0]
+    mapper = make_mapper(steps_per_frame=1, warmup_steps=1)
+    points = mapper.frame_points(frame, frame.world_T_object)
+    assert set(points) == {"camera", "index", "middle"}
+    for source, pts in points.items():
+        assert np.abs(np.linalg.norm(pts, axis=1) - RADIUS).max() < 0.5e-3, source
+    # Another pose (e.g. from a tracker) moves every point accordingly.
+    moved = frame.world_T_object.copy()
+    moved[:3, :3] = moved[:3, :3] @ rotation_matrix(np.array([0.0, 0.0, 1.0]), 0.3)
+    moved[:3, 3] += [0.01, 0.0, 0.0]
+    shifted = mapper.frame_points(frame, moved)["camera"]
+    assert np.abs(np.linalg.norm(shifted, axis=1) - RADIUS).mean() > 2e-3
+    mapper.add_frame(frame, world_T_object=moved)
+    stored = mapper.keyframes.points[0].numpy()
+    assert np.abs(np.linalg.norm(stored, axis=1) - RADIUS).mean() > 2e-3
+
+
+def test_counts_losses_and_warmup() -> None:
+    frames = sphere_frames(3, touches_per_frame=2)
+    mapper = make_mapper(
+        camera_points_per_frame=500, tactile_points_per_touch=64, steps_per_frame=2, warmup_steps=5
+    )
+    labels = dict(frames[0][1])
+    labels["middle"] = TouchLabel(
+        "middle", contact=True, label=1, confidence=0.3, low_confidence=True
+    )
+    losses = mapper.add_frame(frames[0][0], labels)
+    assert set(losses) == {"total", "sdf", "freespace", "eikonal", "material", "points"}
+    assert losses["points"] == 128 * 6 + 64 * 6 + 256
+    assert losses["material"] > 0 and losses["eikonal"] == 0
+    for frame, labels in frames[1:]:
+        mapper.add_frame(frame, labels)
+    assert mapper.trained_on == {
+        "frames": 3, "camera_points": 1500, "tactile_points": 6 * 64, "touches": 6,
+        "labelled_touches": 5, "optimizer_steps": 5 + 2 + 2,
+    }  # fmt: skip
+
+
+def test_empty_frames_train_nothing_and_optimize_needs_data() -> None:
+    mapper = make_mapper()
+    frame = Frame(index=0, time_s=0.0, world_T_object=np.eye(4))
+    assert mapper.add_frame(frame)["points"] == 0
+    assert mapper.trained_on["optimizer_steps"] == 0
+    with pytest.raises(NoDataError):
+        mapper.optimize(3)
+
+
+def test_pose_source() -> None:
+    assert resolve_pose_source("gt") == "gt"
+    with pytest.raises(ConfigError, match="not available yet"):
+        resolve_pose_source("track")
+    with pytest.raises(ConfigError, match="unknown"):
+        resolve_pose_source("vicon")
+
+
+@pytest.mark.parametrize("label_kind", ["none", "low_confidence", "no_contact"])
+def test_unlabelled_touches_do_not_train_the_material_branch(label_kind: str) -> None:
+    frames = sphere_frames(1, touches_per_frame=4)
+    mapper = make_mapper(steps_per_frame=2, warmup_steps=2)
+    before = {k: v.clone() for k, v in mapper.field.material_head.state_dict().items()}
+    sdf_before = {k: v.clone() for k, v in mapper.field.sdf_head.state_dict().items()}
+    for frame, labels in frames:
+        if label_kind == "none":
+            labels = None
+        else:
+            labels = {
+                f: TouchLabel(f, contact=label_kind != "no_contact", label=lab.label, confidence=0.4, low_confidence=label_kind == "low_confidence")
+                for f, lab in labels.items()
+            }  # fmt: skip
+        losses = mapper.add_frame(frame, labels)
+        assert losses["material"] == 0
+    assert mapper.trained_on["labelled_touches"] == 0 and mapper.trained_on["touches"] == 4
+    for key, value in mapper.field.material_head.state_dict().items():
+        assert torch.equal(value, before[key]), key
+    assert any(
+        not torch.equal(v, sdf_before[k]) for k, v in mapper.field.sdf_head.state_dict().items()
+    )
+    # The same frames with usable labels do move the material branch.
+    for frame, labels in frames:
+        mapper.add_frame(frame, labels)
+    assert any(
+        not torch.equal(v, before[k]) for k, v in mapper.field.material_head.state_dict().items()
+    )
+
+
+def test_field_fits_sphere_sdf_below_2mm() -> None:
+    mapper = make_mapper()
+    for frame, labels in sphere_frames(10, touches_per_frame=4):
+        mapper.add_frame(frame, labels)
+    directions = torch.tensor(fibonacci_directions(2000), dtype=torch.float32)
+    with torch.no_grad():
+        surface = mapper.field.sdf(directions * RADIUS).abs().mean().item()
+        band = [
+            (mapper.field.sdf(directions * (RADIUS + d)) - d).abs().mean().item()
+            for d in (-0.003, 0.003)
+        ]
+    assert surface < 2e-3, surface
+    assert max(band) < 2e-3, band
+
+
+@pytest.mark.parametrize("concat", [True, False])
+def test_material_split_from_sparse_touches(concat: bool) -> None:
+    mapper = make_mapper(concat=concat, steps_per_frame=15, warmup_steps=30)
+    for frame, labels in sphere_frames(16, touches_per_frame=4, camera=False, press=0.0005):
+        mapper.add_frame(frame, labels)
+    surface = sphere_surface(4000)
+    predicted = mapper.field.predict_material(torch.tensor(surface, dtype=torch.float32)).numpy()
+    agreement = (predicted == true_label(surface)).mean()
+    assert agreement >= 0.98, agreement
