@@ -8,6 +8,7 @@ from __future__ import annotations
 
 import numpy as np
 import pyrender
+import pyrender.renderer as _pyrender_renderer
 import trimesh
 
 from neuralfeels_sem.objects.material_object import IGNORE, MaterialObject
@@ -77,13 +78,38 @@ def seg_colour(label: int) -> np.ndarray:
     return np.array([code % 256, code // 256, 0], dtype=np.uint8)
 
 
+class _SingleSampleRenderer(_pyrender_renderer.Renderer):
+    """pyrender Renderer with single-sample framebuffers.
+
+    Our renderers only use SEG passes (pyrender turns multisampling off for them), yet
+    pyrender allocates 4x multisampled buffers; clearing and resolving those costs 25% of
+    a pass on software GL (measured: 11.1 -> 8.6 ms CPU per DIGIT pass), for identical depth.
+    """
+
+    def _configure_main_framebuffer(self) -> None:
+        allocate = _pyrender_renderer.glRenderbufferStorageMultisample
+        _pyrender_renderer.glRenderbufferStorageMultisample = lambda target, _samples, fmt, w, h: (
+            allocate(target, 0, fmt, w, h)
+        )
+        try:
+            super()._configure_main_framebuffer()
+        finally:
+            _pyrender_renderer.glRenderbufferStorageMultisample = allocate
+
+
 class _OffscreenKeepingDisplay(pyrender.OffscreenRenderer):
     """OffscreenRenderer whose delete() frees only its own EGL context.
 
     pyrender's EGL delete() calls eglTerminate on the display, which every context of
     the process shares (the other fingers' renderers, the camera, MuJoCo's renderer):
     closing or garbage-collecting one renderer would break all the others (EGL_BAD_DISPLAY).
+    It also renders with single-sample framebuffers (see _SingleSampleRenderer).
     """
+
+    def _create(self) -> None:
+        super()._create()
+        # pyrender's Renderer allocates no GL objects before its first render: swap it.
+        self._renderer = _SingleSampleRenderer(self.viewport_width, self.viewport_height)
 
     def delete(self) -> None:
         platform = getattr(self, "_platform", None)

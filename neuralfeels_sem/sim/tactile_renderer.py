@@ -289,7 +289,13 @@ class DigitRenderer:
 
         # Normals of the pressed gel (height toward the camera) in the sensor frame:
         # n = (-gx, -gy, -1) / |.|, written out per component (small arrays, many pixels).
-        gy, gx = np.gradient(h, PIXEL_M)
+        # Central differences (one-sided at the crop border, where h is 0 anyway).
+        gx = cv2.Sobel(
+            h, cv2.CV_32F, 1, 0, ksize=1, scale=0.5 / PIXEL_M, borderType=cv2.BORDER_REPLICATE
+        )
+        gy = cv2.Sobel(
+            h, cv2.CV_32F, 0, 1, ksize=1, scale=0.5 / PIXEL_M, borderType=cv2.BORDER_REPLICATE
+        )
         nz = -1.0 / np.sqrt(gx * gx + gy * gy + 1.0)
         nx, ny = gx * nz, gy * nz
         response = np.empty((*h.shape, 3), np.float32)

@@ -65,13 +65,12 @@ class _Waves:
         amp /= np.sqrt(0.5 * np.sum(amp**2))  # unit standard deviation overall
         return cls(
             (dirs * (2 * np.pi / lam)[:, None]).astype(np.float32),
-            rng.uniform(0, 2 * np.pi, count),
-            amp,
+            rng.uniform(0, 2 * np.pi, count).astype(np.float32),
+            amp.astype(np.float32),
         )
 
     def __call__(self, points: np.ndarray) -> np.ndarray:
-        arg = points @ self.k.T + self.phase.astype(np.float32)
-        return np.sin(arg) @ self.amp.astype(np.float32)
+        return np.sin(points @ self.k.T + self.phase) @ self.amp
 
 
 class MicroTexture:
@@ -116,16 +115,21 @@ class FabricTexture(MicroTexture):
         self._angle = float(self._rng.uniform(0, np.pi / 2))  # weave orientation on each plane
 
     def _weave(self, s: np.ndarray, t: np.ndarray) -> np.ndarray:
-        c, sn = np.cos(self._angle), np.sin(self._angle)
-        a = (c * s + sn * t) / self.period_m
-        b = (-sn * s + c * t) / self.period_m
-        ia, ib = np.floor(a), np.floor(b)
-        # Thread cross-section: round, zero between threads.
-        prof_a, prof_b = np.sin(np.pi * (a - ia)), np.sin(np.pi * (b - ib))
-        # Over/under: extremal at the crossing centres, opposite for warp and weft.
-        warp = prof_b * (0.5 + 0.5 * np.cos(np.pi * (a - 0.5 + ib)))
-        weft = prof_a * (0.5 - 0.5 * np.cos(np.pi * (b - 0.5 + ia)))
-        return np.maximum(warp, weft)
+        """Unit-height plain weave on plane coordinates (s, t), float32.
+
+        Warp threads run along a, weft along b (both in thread periods). Thread profile:
+        |sin(pi b)| (round, zero between threads); over/under: a warp thread is up where
+        sin(pi a) has the sign of its own index parity, sign(sin(pi b)) = (-1)^floor(b),
+        so warp = |sb| (1 + sa sign(sb)) / 2 = (|sb| + sa sb) / 2 and weft the opposite.
+        """
+        c, sn = (
+            np.float32(np.cos(self._angle) / self.period_m),
+            np.float32(np.sin(self._angle) / self.period_m),
+        )
+        sa = np.sin(np.float32(np.pi) * (c * s + sn * t))
+        sb = np.sin(np.float32(np.pi) * (c * t - sn * s))
+        cross = sa * sb
+        return np.float32(0.5) * np.maximum(np.abs(sb) + cross, np.abs(sa) - cross)
 
     def _relief(self, points: np.ndarray, normal: np.ndarray | None) -> np.ndarray:
         # Tri-planar projection: the weave is a 2D pattern; blend the three axis planes
