@@ -13,6 +13,7 @@ import json
 import logging
 from pathlib import Path
 
+from hydra import compose
 from hydra.utils import instantiate
 from omegaconf import DictConfig, OmegaConf
 
@@ -40,10 +41,15 @@ def load_run_config(run_dir: Path) -> DictConfig:
             f"run_dir={run_dir} is not a mapping run (needs .hydra/config.yaml and checkpoint.pt); "
             "pass the directory a task=map run wrote"
         )
-    run_cfg = OmegaConf.load(config_file)
-    if run_cfg.get("task", {}).get("name") != "map":
-        raise DataError(f"run_dir={run_dir} was written by task={run_cfg.task.name}, not task=map")
-    return run_cfg
+    saved = OmegaConf.load(config_file)
+    if saved.get("task", {}).get("name") != "map":
+        raise DataError(f"run_dir={run_dir} was written by task={saved.task.name}, not task=map")
+    # Re-compose from the run's own overrides so the config gets its schemas (typed nodes) back.
+    overrides_file = run_dir / ".hydra" / "overrides.yaml"
+    overrides = list(OmegaConf.load(overrides_file)) if overrides_file.is_file() else []
+    return compose(
+        config_name="config", overrides=[o for o in overrides if not o.startswith("hydra.")]
+    )
 
 
 def run(cfg: DictConfig) -> dict:

@@ -1,0 +1,139 @@
+"""task=map end to end on the simulated rig, at toy size: every run output, resume, task=eval."""
+
+from __future__ import annotations
+
+import json
+from pathlib import Path
+
+import pytest
+
+from tests.helpers import run_cli
+
+TINY = [
+    "object=plushie",
+    "classifier=oracle",
+    "sensor.duration_s=1.6",
+    "sensor.fps=5",
+    "sensor.rgbd.width=160",
+    "sensor.rgbd.height=120",
+    "mapping.mapper.warmup_steps=20",
+    "mapping.mapper.steps_per_frame=3",
+    "mapping.checkpoint_every=4",
+    "eval.every_k_frames=2",
+    "eval.num_surface_samples=2000",
+    "eval.image_views=2",
+    "eval.image_size=64",
+    "eval.mesh_resolution=48",
+    "eval.shape_samples=2000",
+    "viz.progression_snapshots=2",
+]
+OUTPUTS = (
+    "metrics.json",
+    "material_mesh.ply",
+    "matching_curve.png",
+    "material_maps.png",
+    "progression.png",
+    "checkpoint.pt",
+    "touches.csv",
+    ".hydra/config.yaml",
+)
+
+
+@pytest.fixture(scope="module")
+def tiny_run(tmp_path_factory) -> Path:
+    run_dir = tmp_path_factory.mktemp("map") / "run"
+    result = run_cli([*TINY, f"hydra.run.dir={run_dir}"], timeout=900)
+    assert result.returncode == 0, result.stderr[-4000:]
+    assert f"run directory: {run_dir}" in result.stdout
+    return run_dir
+
+
+def test_map_writes_the_run_output_contract(tiny_run: Path) -> None:
+    for name in OUTPUTS:
+        assert (tiny_run / name).is_file(), name
+    metrics = json.loads((tiny_run / "metrics.json").read_text())
+    for key in (
+        "matching_pct",
+        "matching_curve",
+        "fscore_5mm",
+        "chamfer_mm",
+        "classifier_accuracy",
+        "frames",
+        "wall_s",
+        "realtime_factor",
+        "config",
+        "baseline",
+        "trained_on",
+    ):
+        assert key in metrics, key
+    assert metrics["frames"] == 8
+    assert metrics["config"]["object"] == "plushie" and metrics["config"]["seed"] == 0
+    assert [row[0] for row in metrics["matching_curve"]] == [0, 2, 4, 6, 7]
+    trained = metrics["trained_on"]
+    assert trained["camera_points"] > 0 and trained["tactile_points"] > 0
+    assert trained["labelled_touches"] > 0 and trained["optimizer_steps"] == 20 + 7 * 3
+    # Measured, not estimated: sensor time over wall time.
+    assert metrics["realtime_factor"] == pytest.approx(metrics["sensor_time_s"] / metrics["wall_s"])
+    assert metrics["sensor_time_s"] == pytest.approx(1.6)
+    # Even a toy run beats the untrained field it is read against.
+    assert metrics["matching_pct"] > metrics["baseline"]["matching_pct"] + 20
+    assert metrics["fscore_5mm"] > metrics["baseline"]["fscore_5mm"]
+    assert metrics["classifier_accuracy"]["overall"] == pytest.approx(1.0)  # the oracle
+
+
+def test_task_eval_rescores_a_finished_run(tiny_run: Path) -> None:
+    result = run_cli(
+        [
+            "task=eval",
+            f"run_dir={tiny_run}",
+            "eval.image_size=64",
+            "eval.image_views=2",
+            "eval.mesh_resolution=48",
+            "eval.num_surface_samples=2000",
+            "eval.shape_samples=2000",
+        ]
+    )
+    assert result.returncode == 0, result.stderr[-3000:]
+    original = json.loads((tiny_run / "metrics.json").read_text())
+    again = json.loads((tiny_run / "eval" / "metrics.json").read_text())
+    assert again["matching_pct"] == pytest.approx(original["matching_pct"])
+    assert again["fscore_5mm"] == pytest.approx(original["fscore_5mm"], abs=1e-6)
+    assert (tiny_run / "eval" / "material_maps.png").is_file()
+
+
+def test_task_eval_refuses_a_directory_that_is_not_a_run(tmp_path: Path) -> None:
+    result = run_cli(["task=eval", f"run_dir={tmp_path}"])
+    assert result.returncode == 2
+    assert "is not a mapping run" in result.stderr
+    assert "Traceback" not in result.stderr
+
+
+def test_resume_continues_from_the_checkpoint(tiny_run: Path, tmp_path: Path) -> None:
+    result = run_cli(
+        [
+            *TINY,
+            f"mapping.resume={tiny_run / 'checkpoint.pt'}",
+            "sensor.duration_s=2.4",
+            f"hydra.run.dir={tmp_path}",
+        ],
+        timeout=900,
+    )
+    assert result.returncode == 0, result.stderr[-3000:]
+    metrics = json.loads((tmp_path / "metrics.json").read_text())
+    # Frames 0-7 came from the checkpoint; only 8-11 were processed again.
+    assert metrics["frames"] == 4
+    assert metrics["trained_on"]["frames"] == 12
+    assert metrics["matching_curve"][0][0] == 0 and metrics["matching_curve"][-1][0] == 11
+
+
+def test_resume_with_another_model_variant_is_refused(tiny_run: Path, tmp_path: Path) -> None:
+    result = run_cli(
+        [
+            *TINY,
+            f"mapping.resume={tiny_run / 'checkpoint.pt'}",
+            "model.sdf.hidden_dim=32",
+            f"hydra.run.dir={tmp_path}",
+        ]
+    )
+    assert result.returncode == 2
+    assert "different model" in result.stderr
