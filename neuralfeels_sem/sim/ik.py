@@ -1,9 +1,10 @@
 """Damped least-squares inverse kinematics for the four DIGIT fingertips (MuJoCo Jacobians).
 
 Each finger has 4 joints but a fingertip target has 5 constraints (gel centre position
-and the pad normal direction), so position is weighted fully and the normal softly
-(`normal_weight` metres per radian): the gel lands on the target point and tilts as
-close to the surface normal as the finger allows. Fingers are independent chains, so
+and the pad normal direction), so position is the primary task and the pad direction
+is pursued only in its null space (one spare degree of freedom, gain `normal_weight`):
+the gel lands on the target point and tilts as close to the wanted direction as the
+finger allows there. Fingers are independent chains, so
 all four are solved together with one forward-kinematics pass per iteration.
 """
 
@@ -15,6 +16,8 @@ import mujoco
 import numpy as np
 
 from neuralfeels_sem.sensors.frame import FINGERS
+
+MAX_STEP_RAD = 0.2
 
 
 @dataclass
@@ -47,8 +50,8 @@ class FingertipIK:
         model: mujoco.MjModel,
         data: mujoco.MjData,
         iterations: int = 40,
-        damping: float = 1e-4,
-        normal_weight: float = 0.02,
+        damping: float = 1e-6,
+        normal_weight: float = 0.5,
         tolerance_m: float = 1e-4,
     ) -> None:
         self.model, self.data = model, data
@@ -84,7 +87,7 @@ class FingertipIK:
                 raise ValueError(f"unknown finger {finger!r}; expected one of {FINGERS}")
         errors = dict.fromkeys(targets, np.inf)
         active = set(targets)
-        eye = self.damping * np.eye(6)
+        eye3 = self.damping * np.eye(3)
         for _ in range(self.iterations):
             self.forward()
             for finger in list(active):
@@ -92,18 +95,25 @@ class FingertipIK:
                 pos, pad = self.gel_pose(finger)
                 err_p = target.gel_position - pos
                 errors[finger] = float(np.sqrt(err_p @ err_p))
-                err_r = _cross(
-                    pad, target.pad_direction
-                )  # axis * sin(angle) toward the target normal
+                err_r = _cross(pad, target.pad_direction)  # axis * sin(angle) toward the target
                 mujoco.mj_jacSite(
                     self.model, self.data, self._jacp, self._jacr, self.site_ids[finger]
                 )
                 dofs = self.dof_adr[finger]
-                jac = np.concatenate(
-                    [self._jacp[:, dofs], self.normal_weight * self._jacr[:, dofs]]
+                jp, jr = self._jacp[:, dofs], self._jacr[:, dofs]
+                # Position first (damped least squares); the pad direction only in the
+                # position task's null space (4 joints - 3 = 1 spare degree of freedom).
+                jp_pinv = jp.T @ np.linalg.inv(jp @ jp.T + eye3)
+                dq = jp_pinv @ err_p
+                # An exact projector (undamped pseudo-inverse), else the secondary task leaks
+                # into the position and slows it down.
+                jrn = jr @ (np.eye(4) - np.linalg.pinv(jp, rcond=1e-4) @ jp)
+                dq += self.normal_weight * (
+                    jrn.T @ np.linalg.solve(jrn @ jrn.T + 1e-2 * np.eye(3), err_r - jr @ dq)
                 )
-                err = np.concatenate([err_p, self.normal_weight * err_r])
-                dq = jac.T @ np.linalg.solve(jac @ jac.T + eye, err)
+                step = np.abs(dq).max()
+                if step > MAX_STEP_RAD:  # keep linearisation steps small near singularities
+                    dq *= MAX_STEP_RAD / step
                 adr = self.qpos_adr[finger]
                 lim = self.limits[finger]
                 before = self.data.qpos[adr].copy()

@@ -31,13 +31,14 @@ from neuralfeels_sem.utils.geometry import invert_pose
 DEFAULT_PRESS_M = {"index": 0.0015, "middle": 0.0015, "ring": 0.0015, "thumb": 0.0007}
 # Posture of fingers that take no part (bent back, away from the object) and the IK start.
 REST_Q = np.array([0.0, -0.19, 0.0, 0.0] * 3 + [0.263, 0.0, 0.0, 0.0])
-# Natural grasp posture (pads of fingers and thumb face each other) and how far contact
-# postures are sampled around it, per joint.
+# Natural grasp posture (pads of fingers and thumb face each other; index and ring turned in
+# toward the middle finger) and how far contact postures are sampled around it, per joint.
 NOMINAL_Q = np.array(
     [0.4, 0.6, 0.6, 0.5, 0.0, 0.6, 0.6, 0.5, -0.4, 0.6, 0.6, 0.5, 1.25, 0.1, 0.3, 0.3]
 )
 POSTURE_JITTER = np.array([0.2, 0.3, 0.3, 0.3] * 3 + [0.12, 0.25, 0.25, 0.25])
 SAMPLE_TRIES = 24
+VERIFY_CANDIDATES = 6  # closest sampled touches checked for reachability by IK
 RAY_BACK_M = 0.06  # contact rays start this far behind the gel surface
 MAX_SHIFT_M = 0.015  # a sampled pad may be at most this far from the surface
 GRAZING_COS = 0.5  # the surface must face the pad within 60 degrees
@@ -121,6 +122,7 @@ class SimRig:
         self.ik = FingertipIK(self.scene.model, self.scene.data)
         self._probe = mujoco.MjData(self.scene.model)
         self._probe.qpos[:] = NOMINAL_Q
+        self._probe_ik = FingertipIK(self.scene.model, self._probe, iterations=30)
         self.trajectory = ObjectTrajectory(
             self.centre, self.axis, self.speed_deg_s, wobble_deg=self.wobble_deg, seed=self.seed
         )
@@ -189,10 +191,14 @@ class SimRig:
         joints = slice(4 * i, 4 * i + 4)
         limits = self.ik.limits[finger]
         centre = world_T_object[:3, 3]
-        best, best_shift = None, max_shift
+        candidates = []
         for _ in range(SAMPLE_TRIES):
-            q = NOMINAL_Q[joints] + rng.uniform(-1.0, 1.0, 4) * POSTURE_JITTER[joints]
-            data.qpos[joints] = np.clip(q, limits[:, 0], limits[:, 1])
+            q = np.clip(
+                NOMINAL_Q[joints] + rng.uniform(-1.0, 1.0, 4) * POSTURE_JITTER[joints],
+                limits[:, 0],
+                limits[:, 1],
+            )
+            data.qpos[joints] = q
             mujoco.mj_kinematics(model, data)
             gel, pad = self._gel(model, data, finger)
             # Look along the pad first; a narrow object may pass beside it, so then look
@@ -203,18 +209,20 @@ class SimRig:
                 start = gel - RAY_BACK_M * look
                 dist, normal = self.scene.ray_object(start, look, data)
                 shift = abs(dist - RAY_BACK_M)
-                # The touch closest to a sampled posture wins; never a grazing one.
-                if dist < 0 or shift >= best_shift or normal @ pad > -GRAZING_COS:
-                    continue
-                best, best_shift = (start + dist * look, normal, pad), shift
-        if best is None:
-            return None
-        object_T_world = invert_pose(world_T_object)
-        rot = object_T_world[:3, :3]
-        point, normal, pad = best
-        return Contact(
-            point=rot @ point + object_T_world[:3, 3], normal=rot @ normal, pad=rot @ pad
-        )
+                if dist >= 0 and shift < max_shift and normal @ pad <= -GRAZING_COS:
+                    candidates.append((shift, q, start + dist * look, normal, pad))
+        # The touch closest to its sampled posture that the IK reaches from there wins.
+        candidates.sort(key=lambda c: c[0])
+        for _, q, point, normal, pad in candidates[:VERIFY_CANDIDATES]:
+            data.qpos[joints] = q
+            target = FingerTarget(point + self.press.get(finger, 0.0) * pad, pad)
+            if self._probe_ik.solve({finger: target})[finger] < 1e-3:
+                object_T_world = invert_pose(world_T_object)
+                rot = object_T_world[:3, :3]
+                return Contact(
+                    point=rot @ point + object_T_world[:3, 3], normal=rot @ normal, pad=rot @ pad
+                )
+        return None
 
     # ------------------------------------------------------------------ per time step
     def press_depth(self, finger: str) -> float:
