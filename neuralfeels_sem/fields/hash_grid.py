@@ -142,8 +142,55 @@ class HashGridEncoding(nn.Module):
             raise ValueError(f"x must have shape (N, 3), got {tuple(x.shape)}")
         n = x.shape[0]
         idx, weights = self.corner_indices(x)
-        feats = F.embedding(idx.reshape(-1), self.table, sparse=self.sparse_grad)
+        idx = idx.reshape(-1)
+        if self.sparse_grad and torch.is_grad_enabled() and self.table.requires_grad:
+            feats = _SparseGather.apply(self.table, idx)
+        else:
+            feats = F.embedding(idx, self.table)
         feats = feats.view(n * self.num_levels, 8, self.features_per_level)
         # Weighted sum over the 8 corners as one batched matmul (fast forward and backward).
         out = torch.bmm(weights.reshape(n * self.num_levels, 1, 8), feats)
         return out.reshape(n, self.out_dim)
+
+
+def sum_rows(idx: Tensor, values: Tensor, num_rows: int) -> tuple[Tensor, Tensor]:
+    """Distinct sorted rows of `idx` (M,) and the sums of `values` (M, F) over each.
+
+    The reduction behind a coalesced sparse gradient: one 32-bit sort (when the row count
+    allows), then a sequential index_add over the sorted order (cache friendly).
+    """
+    key = idx.int() if num_rows < 2**31 else idx
+    sorted_idx, perm = torch.sort(key)
+    starts = torch.ones_like(sorted_idx, dtype=torch.bool)
+    starts[1:] = sorted_idx[1:] != sorted_idx[:-1]
+    rows = sorted_idx[starts].long()
+    segment = torch.cumsum(starts, dim=0) - 1
+    sums = values.new_zeros((rows.numel(), *values.shape[1:]))
+    sums.index_add_(0, segment, values.index_select(0, perm))
+    return rows, sums
+
+
+class _SparseGather(torch.autograd.Function):
+    """table[idx] whose table gradient is a coalesced sparse COO tensor (sorted, distinct rows).
+
+    torch's embedding(sparse=True) leaves one gradient row per lookup (8 per level per
+    point), and coalescing that in the optimiser cost more than the rest of the step.
+    The backward is first-order only, which is all the eikonal loss needs (its second
+    derivative flows through the interpolation weights, not through this gather).
+    """
+
+    @staticmethod
+    def forward(ctx, table: Tensor, idx: Tensor) -> Tensor:
+        ctx.save_for_backward(idx)
+        ctx.table_shape = table.shape
+        return table.index_select(0, idx)
+
+    @staticmethod
+    @torch.autograd.function.once_differentiable
+    def backward(ctx, grad: Tensor) -> tuple[Tensor, None]:
+        (idx,) = ctx.saved_tensors
+        rows, sums = sum_rows(idx, grad, ctx.table_shape[0])
+        sparse = torch.sparse_coo_tensor(
+            rows[None], sums, ctx.table_shape, is_coalesced=True, check_invariants=False
+        )
+        return sparse, None

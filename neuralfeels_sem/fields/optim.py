@@ -87,9 +87,7 @@ def _sparse_update(
         raise ValueError(
             f"FieldAdam supports row-sparse gradients (sparse_dim 1), got {grad.sparse_dim()}"
         )
-    grad = grad.coalesce()  # sums duplicate rows: the same table row hit by many corners
-    rows = grad.indices()[0]
-    values = grad.values()
+    rows, values = _coalesced_rows(grad)
     if rows.numel() == 0:
         return
     if group["weight_decay"] != 0:
@@ -100,4 +98,18 @@ def _sparse_update(
     exp_avg.index_copy_(0, rows, m)
     exp_avg_sq.index_copy_(0, rows, v)
     denom = v.sqrt_().add_(group["eps"] * math.sqrt(1 - beta2 ** state["step"]))
-    p.index_add_(0, rows, m.div_(denom), alpha=-step_size)
+    # index_copy of the updated rows: index_add_ on CPU is about 6x slower here.
+    p.index_copy_(0, rows, p.index_select(0, rows).addcdiv_(m, denom, value=-step_size))
+
+
+def _coalesced_rows(grad: Tensor) -> tuple[Tensor, Tensor]:
+    """(distinct rows, summed values) of a row-sparse gradient.
+
+    The hash grid hands over sorted distinct rows, but autograd's accumulation drops the
+    is_coalesced flag, so check the order (O(rows)) before paying for a full coalesce.
+    """
+    rows, values = grad._indices()[0], grad._values()
+    if rows.numel() < 2 or bool((rows[1:] > rows[:-1]).all()):
+        return rows, values
+    grad = grad.coalesce()
+    return grad.indices()[0], grad.values()

@@ -5,7 +5,7 @@ from __future__ import annotations
 import pytest
 import torch
 
-from neuralfeels_sem.fields.hash_grid import HASH_PRIMES, HashGridEncoding
+from neuralfeels_sem.fields.hash_grid import HASH_PRIMES, HashGridEncoding, sum_rows
 
 
 def _tiny(dtype=torch.float64, **kwargs) -> HashGridEncoding:
@@ -129,3 +129,29 @@ def test_deterministic_init_and_shapes() -> None:
         HashGridEncoding(per_level_scale=0.5)
     with pytest.raises(ValueError, match="log2_table_size"):
         HashGridEncoding(log2_table_size=40)
+
+
+def test_sum_rows_matches_unique_and_index_add() -> None:
+    g = torch.Generator().manual_seed(0)
+    idx = torch.randint(0, 500, (3000,), generator=g)
+    values = torch.randn(3000, 2, generator=g, dtype=torch.float64)
+    rows, sums = sum_rows(idx, values, 500)
+    expected_rows, inverse = torch.unique(idx, return_inverse=True)
+    expected = torch.zeros(len(expected_rows), 2, dtype=torch.float64).index_add_(
+        0, inverse, values
+    )
+    assert torch.equal(rows, expected_rows)
+    torch.testing.assert_close(sums, expected, rtol=0, atol=1e-12)
+
+
+def test_two_lookups_in_one_loss_accumulate_sparse_gradients() -> None:
+    torch.manual_seed(0)
+    enc = _tiny(dtype=torch.float32, log2_table_size=8)
+    a, b = torch.rand(50, 3), torch.rand(70, 3)
+    grads = {}
+    for sparse in (False, True):
+        enc.sparse_grad = sparse
+        enc.table.grad = None
+        (enc(a).square().sum() + 3 * enc(b).sum()).backward()
+        grads[sparse] = enc.table.grad.to_dense()
+    torch.testing.assert_close(grads[True], grads[False], rtol=1e-5, atol=1e-6)

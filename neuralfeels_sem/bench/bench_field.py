@@ -1,0 +1,132 @@
+"""Semantic field training speed and memory: steps/s at 4096 points per step.
+
+One step = SemanticField forward (SDF + material branch) on 4096 points, an L1 SDF loss
+plus a cross-entropy material loss, backward, FieldAdam step. Measured for the CPU default
+(log2 table 19) and the paper's table (log2 24), with row-sparse and dense table
+gradients. Each configuration runs in a fresh process so its peak RSS (max resident set
+size minus the size after imports) is its own. On a CUDA machine the GPU rows are added,
+with torch's peak allocated memory.
+"""
+
+from __future__ import annotations
+
+import multiprocessing as mp
+import resource
+import time
+
+import torch
+
+POINTS = 4096
+NUM_CLASSES = 4
+WARMUP_STEPS = 2
+MIN_STEPS, MAX_STEPS, TIME_BUDGET_S = 3, 30, 8.0
+
+
+def _measure(log2_table_size: int, sparse: bool, device: str) -> dict:
+    import torch.nn.functional as F
+
+    from neuralfeels_sem.configs.model import HashGridConfig
+    from neuralfeels_sem.fields import FieldAdam, SemanticField
+
+    rss0 = resource.getrusage(resource.RUSAGE_SELF).ru_maxrss
+    torch.manual_seed(0)
+    encoding = HashGridConfig(log2_table_size=log2_table_size, sparse_grad=sparse)
+    field = SemanticField(NUM_CLASSES, bound=0.1, encoding=encoding).to(device)
+    opt = FieldAdam(field.parameters(), lr=1e-3)
+    g = torch.Generator(device=device).manual_seed(0)
+
+    def step() -> None:
+        x = (torch.rand(POINTS, 3, generator=g, device=device) * 2 - 1) * 0.1
+        labels = torch.randint(0, NUM_CLASSES, (POINTS,), generator=g, device=device)
+        out = field(x)
+        loss = (out["sdf"] - (x.norm(dim=-1) - 0.05)).abs().mean() + F.cross_entropy(
+            out["material_logits"], labels
+        )
+        opt.zero_grad(set_to_none=True)
+        loss.backward()
+        opt.step()
+
+    def sync() -> None:
+        if device.startswith("cuda"):
+            torch.cuda.synchronize()
+
+    for _ in range(WARMUP_STEPS):
+        step()
+    sync()
+    if device.startswith("cuda"):
+        torch.cuda.reset_peak_memory_stats()
+    steps, start = 0, time.perf_counter()
+    while steps < MAX_STEPS and (steps < MIN_STEPS or time.perf_counter() - start < TIME_BUDGET_S):
+        step()
+        sync()
+        steps += 1
+    elapsed = time.perf_counter() - start
+
+    # Dense query throughput (marching cubes path): SDF only, no grad.
+    q = (torch.rand(65536, 3, device=device) * 2 - 1) * 0.1
+    with torch.no_grad():
+        field.sdf(q)
+        sync()
+        t0 = time.perf_counter()
+        for _ in range(3):
+            field.sdf(q)
+        sync()
+        query_s = (time.perf_counter() - t0) / 3
+
+    result = {
+        "steps_per_s": round(steps / elapsed, 3),
+        "ms_per_step": round(1000 * elapsed / steps, 1),
+        "steps_timed": steps,
+        "table_rows": int(field.encoding.table.shape[0]),
+        "params_mb": round(
+            sum(p.numel() * p.element_size() for p in field.parameters()) / 2**20, 1
+        ),
+        "sdf_query_points_per_s": round(65536 / query_s),
+    }
+    if device.startswith("cuda"):
+        result["peak_gpu_mb"] = round(torch.cuda.max_memory_allocated() / 2**20, 1)
+    else:
+        # ru_maxrss is in KiB on Linux.
+        result["peak_rss_delta_mb"] = round(
+            (resource.getrusage(resource.RUSAGE_SELF).ru_maxrss - rss0) / 1024, 1
+        )
+    return result
+
+
+def _child(queue, log2: int, sparse: bool, device: str, threads: int) -> None:
+    torch.set_num_threads(threads)
+    try:
+        queue.put(_measure(log2, sparse, device))
+    except Exception as exc:  # an out-of-memory or similar: report it, keep the others
+        queue.put({"error": f"{type(exc).__name__}: {exc}"})
+
+
+def _run_isolated(log2: int, sparse: bool, device: str) -> dict:
+    ctx = mp.get_context("spawn")
+    queue = ctx.Queue()
+    proc = ctx.Process(target=_child, args=(queue, log2, sparse, device, torch.get_num_threads()))
+    proc.start()
+    try:
+        result = queue.get(timeout=300)
+    except Exception:
+        result = {"error": f"no result (exit code {proc.exitcode}; out of memory?)"}
+    proc.join(timeout=30)
+    return result
+
+
+def run() -> dict:
+    devices = ["cpu"] + (["cuda"] if torch.cuda.is_available() else [])
+    results: dict = {"points_per_step": POINTS, "threads": torch.get_num_threads()}
+    for device in devices:
+        for log2, name in ((19, "cpu_default"), (24, "paper")):
+            for sparse in (True, False):
+                key = f"{device}_{name}_log2_{log2}_{'sparse' if sparse else 'dense'}"
+                print(f"[bench_field] {key} ...", flush=True)
+                results[key] = _run_isolated(log2, sparse, device)
+    return results
+
+
+if __name__ == "__main__":
+    import json
+
+    print(json.dumps(run(), indent=2))
