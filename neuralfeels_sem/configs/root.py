@@ -47,3 +47,31 @@ class TaskConfig:
 def register(cs) -> None:
     cs.store(group="schema", name="root", node=RootConfig)
     cs.store(group="schema/task", name="base", node=TaskConfig)
+    register_experiments(cs)
+
+
+@dataclass
+class ClassifierExperimentConfig(TaskConfig):
+    """task=classifier_experiment: sizes of the collected sets and the training budget."""
+
+    samples_per_class_per_sensor: int = 300
+    heldout_per_class_per_sensor: int = 50
+    input_size: int = 224
+    max_epochs: int = 100
+    patience: int = 10
+
+    def __post_init__(self) -> None:
+        for key in (
+            "samples_per_class_per_sensor",
+            "heldout_per_class_per_sensor",
+            "max_epochs",
+            "patience",
+        ):
+            if getattr(self, key) < 1:
+                raise ValueError(f"task.{key}={getattr(self, key)} must be >= 1")
+        if not 32 <= self.input_size <= 512:
+            raise ValueError(f"task.input_size={self.input_size} must be in 32..512")
+
+
+def register_experiments(cs) -> None:
+    cs.store(group="schema/task", name="classifier_experiment", node=ClassifierExperimentConfig)

@@ -9,6 +9,9 @@ from __future__ import annotations
 
 import logging
 import sys
+from collections.abc import Iterator
+from contextlib import contextmanager
+from contextvars import ContextVar
 from pathlib import Path
 
 from hydra.core.hydra_config import HydraConfig
@@ -24,12 +27,33 @@ from neuralfeels_sem.utils.seed import seed_everything
 log = logging.getLogger(__name__)
 
 
+_output_override: ContextVar[Path | None] = ContextVar("output_override", default=None)
+
+
 def output_dir() -> Path:
-    """The current run's directory (Hydra's), or the working directory outside Hydra."""
+    """The current run's directory (Hydra's), or the working directory outside Hydra.
+
+    A pipeline task running other tasks as steps points each at its own sub-directory
+    with `redirect_output`.
+    """
+    override = _output_override.get()
+    if override is not None:
+        return override
     try:
         return Path(HydraConfig.get().runtime.output_dir)
     except ValueError:
         return Path.cwd()
+
+
+@contextmanager
+def redirect_output(path: Path) -> Iterator[Path]:
+    """Make output_dir() return `path` (created) inside the block."""
+    path.mkdir(parents=True, exist_ok=True)
+    token = _output_override.set(path)
+    try:
+        yield path
+    finally:
+        _output_override.reset(token)
 
 
 def _is_multirun() -> bool:
