@@ -99,6 +99,9 @@ class DigitRenderer:
         press_gain: grey levels added at full press (the thinned gel looks brighter).
         blur_px: elastomer smoothing (Gaussian sigma, pixels) of a rigid contact.
         soft_blur_px: smoothing of a fully compliant contact.
+        smooth_px: smoothing (Gaussian sigma, pixels) of the object's depth before shading,
+            so triangle facets of the mesh do not show as flat shaded patches (0 = off;
+            ground-truth depth is never smoothed).
     """
 
     def __init__(
@@ -113,12 +116,14 @@ class DigitRenderer:
         press_gain: float = 30.0,
         blur_px: float = 0.8,
         soft_blur_px: float = 1.6,
+        smooth_px: float = 5.0,
     ) -> None:
         if (
             noise_std < 0
             or texture_scale < 0
             or light_gain < 0
             or blur_px <= 0
+            or smooth_px < 0
             or soft_blur_px < blur_px
         ):
             raise ValueError(
@@ -130,6 +135,7 @@ class DigitRenderer:
         self.light_gain = float(light_gain)
         self.press_gain = float(press_gain)
         self.blur_px, self.soft_blur_px = float(blur_px), float(soft_blur_px)
+        self.smooth_px = float(smooth_px)
         self._background_spec = background
         self._background: np.ndarray | None = None
         self._seed = seed
@@ -272,6 +278,10 @@ class DigitRenderer:
         comp = np.zeros(d.shape, np.float32)
         comp[v, u] = self._compliance[lut_vu]
         pen = np.zeros(d.shape, np.float32)
+        if self.smooth_px > 0:
+            # Missing depth (beyond the far plane) counts as far away, never as contact.
+            far = np.float32(self._reach.max() + 1e-3)
+            z = cv2.GaussianBlur(np.where(d > 0, d, far), (0, 0), self.smooth_px)[v, u]
         pen[v, u] = relief - z
         pen += GEL_DISTANCE_M + SOFT_REACH_M * comp
         pen[~m] = 0.0

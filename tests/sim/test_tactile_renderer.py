@@ -273,3 +273,26 @@ def test_contact_sheet_writes_a_png(tmp_path) -> None:
     path = contact_sheet(tmp_path / "sheet.png")
     image = cv2.imread(str(path))
     assert image is not None and image.shape[0] >= 320 and image.shape[1] >= 5 * 240
+
+
+def test_depth_smoothing_hides_mesh_facets_but_not_ground_truth() -> None:
+    """A coarse sphere (1.9 mm facets, like the shipped objects) renders closer to a fine one with smoothing than without."""
+    import cv2
+
+    pose = _press(np.eye(4), np.array([0.1, 0.2, 1.0]), 1.2e-3)
+
+    def render(subdivisions: int, smooth: float):
+        renderer = DigitRenderer(
+            _sphere(subdivisions=subdivisions), noise_std=0.0, texture_scale=0.0, smooth_px=smooth
+        )
+        out = renderer.render(np.eye(4), pose)
+        renderer.close()
+        return out
+
+    reference = render(6, 0.0).image.astype(float)  # facets far below a pixel's slope change
+    raw, smoothed = render(4, 0.0), render(4, 5.0)
+    np.testing.assert_array_equal(raw.depth, smoothed.depth)  # ground truth is never smoothed
+    interior = cv2.erode(raw.contact_mask.astype(np.uint8), np.ones((21, 21))) > 0
+    error_raw = np.abs(raw.image - reference)[interior].mean()
+    error_smoothed = np.abs(smoothed.image - reference)[interior].mean()
+    assert error_smoothed < 0.6 * error_raw, (error_smoothed, error_raw)
