@@ -48,13 +48,9 @@ LOSS_KEYS = ("total", "sdf", "freespace", "eikonal", "material", "points")
 
 
 def resolve_pose_source(pose: str) -> str:
-    """Check `mapping.pose`; only `gt` (the frame's pose) is available so far."""
+    """Check `mapping.pose`: `gt`, `track` or `track_known_shape` (mapping/pose_source.py)."""
     if pose not in POSE_SOURCES:
         raise ConfigError(f"mapping.pose={pose!r} is unknown; use one of {POSE_SOURCES}")
-    if pose != "gt":
-        raise ConfigError(
-            f"mapping.pose={pose} needs pose tracking, which is not available yet; use mapping.pose=gt"
-        )
     return pose
 
 

@@ -1,17 +1,29 @@
 """Where the object pose used for mapping comes from (`mapping.pose`).
 
 `gt` takes the frame's pose (the simulator's, or markers on hardware): the paper's
-setting. The tracking modes estimate it (see pose tracking in the README). Every source
-also reports how its pose relates to the ground truth, so a run in tracked mode is
-scored the way a user without ground truth would see it.
+setting. `track` estimates it per frame by aligning the frame's camera and touch points
+to the field being learned (NeuralFeels' SLAM loop: track, then map with the tracked
+pose); `track_known_shape` aligns them to the ground-truth mesh (NeuralFeels' pose
+tracking mode). Every source also reports how its pose relates to the ground truth, so
+a run in tracked mode is scored the way a user without ground truth would see it.
 """
 
 from __future__ import annotations
 
-import numpy as np
+import logging
+from pathlib import Path
 
+import numpy as np
+import torch
+
+from neuralfeels_sem.errors import ConfigError
+from neuralfeels_sem.mapping.pose_tracker import PoseTracker, constant_velocity
 from neuralfeels_sem.sensors.frame import Frame
-from neuralfeels_sem.utils.geometry import invert_pose
+from neuralfeels_sem.utils.geometry import check_pose, invert_pose
+
+log = logging.getLogger(__name__)
+
+TRACKED = ("track", "track_known_shape")
 
 
 class PoseSource:
@@ -50,9 +62,168 @@ class PoseSource:
         pass
 
 
-def build_pose_source(pose: str, obj=None) -> PoseSource:
+def average_3d_error(
+    world_T_est: np.ndarray, world_T_gt: np.ndarray, surface_points: np.ndarray
+) -> float:
+    """Mean distance (metres) between object surface points placed by the two poses."""
+    check_pose(world_T_est, "world_T_est")
+    check_pose(world_T_gt, "world_T_gt")
+    diff = world_T_est - world_T_gt
+    return float(np.linalg.norm(surface_points @ diff[:3, :3].T + diff[:3, 3], axis=1).mean())
+
+
+class TrackedPose(PoseSource):
+    """Tracks the object pose per frame with a PoseTracker (see the module docstring).
+
+    The first frame's own pose (frame.world_T_object) is the origin of the map; after it
+    the frame's pose is never read. Until the mapper has trained on a frame (`track`)
+    there is no surface to align to, so the constant-velocity prediction is kept.
+    Pose error (the "average 3D error": mean distance between ground-truth surface samples
+    placed by the tracked and by the true pose) is recorded wherever the frame has a
+    ground-truth pose.
+    """
+
+    def __init__(
+        self,
+        mode: str,
+        obj=None,
+        tracker: PoseTracker | None = None,
+        error_samples: int = 2000,
+        known_shape_resolution: int = 96,
+        seed: int = 0,
+    ) -> None:
+        if mode not in TRACKED:
+            raise ValueError(f"mode={mode!r} must be one of {TRACKED}")
+        if mode == "track_known_shape" and obj is None:
+            raise ValueError("track_known_shape needs the object (its ground-truth mesh)")
+        if error_samples < 1:
+            raise ValueError(f"error_samples={error_samples} must be >= 1")
+        self.name = mode
+        self.obj = obj
+        self.tracker = tracker or PoseTracker(
+            rotation_scale=obj.bounds_radius if obj is not None else 0.05, seed=seed
+        )
+        self.error_samples = error_samples
+        self.known_shape_resolution = known_shape_resolution
+        self.seed = seed
+        self._known_sdf = None
+        self._error_points: np.ndarray | None = None
+        self.history: list[np.ndarray] = []  # the last two estimates (motion prior)
+        self.curve: list[list[float]] = []  # [frame_index, time_s, error_mm]
+        self.kept: dict[str, int] = {}  # why the prediction was kept, and how often
+        self.tracked_frames = 0
+
+    # ---------------------------------------------------------------- tracking
+    def _sdf_fn(self, mapper):
+        if self.name == "track":
+            return mapper.field.sdf
+        if self._known_sdf is None:
+            from neuralfeels_sem.mapping.known_shape import GridSdf
+
+            self._known_sdf = GridSdf.of_mesh(self.obj.mesh, self.known_shape_resolution)
+        return self._known_sdf
+
+    def _keep(self, reason: str) -> None:
+        self.kept[reason] = self.kept.get(reason, 0) + 1
+
+    def estimate(self, frame: Frame, mapper) -> np.ndarray:
+        if not self.history:
+            pose = np.asarray(frame.world_T_object, dtype=np.float64).copy()
+        else:
+            predicted = constant_velocity(self.history)
+            if self.name == "track" and not getattr(mapper, "warmed_up", True):
+                pose = predicted
+                self._keep("no surface learned yet")
+            else:
+                points = {
+                    source: torch.as_tensor(p)
+                    for source, p in mapper.frame_points(frame, np.eye(4)).items()
+                }
+                pose, info = self.tracker.track(
+                    points, self._sdf_fn(mapper), predicted, prior=predicted
+                )
+                if info["skipped"]:
+                    self._keep(info["skipped"].split(" (")[0])
+                else:
+                    self.tracked_frames += 1
+        self.history = (self.history + [pose])[-2:]
+        self.last_estimate = pose
+        self.last_frame = frame
+        if frame.gt_world_T_object is not None:
+            err = average_3d_error(pose, frame.gt_world_T_object, self._surface_points())
+            self.curve.append([int(frame.index), float(frame.time_s), 1e3 * err])
+        return pose
+
+    def _surface_points(self) -> np.ndarray:
+        if self._error_points is None:
+            if self.obj is None:
+                raise ValueError("the pose error needs the object's mesh (pass obj)")
+            self._error_points = self.obj.sample_surface(self.error_samples, seed=self.seed)[0]
+        return self._error_points
+
+    # ---------------------------------------------------------------- outputs
+    def metrics(self) -> dict:
+        out: dict = {
+            "pose_frames_tracked": self.tracked_frames,
+            "pose_frames_kept": dict(self.kept),
+        }
+        if self.curve:
+            errors = np.array([row[2] for row in self.curve])
+            out.update(
+                pose_error_mm=float(errors.mean()),
+                pose_error_max_mm=float(errors.max()),
+                pose_error_final_mm=float(errors[-1]),
+                pose_error_curve=[list(row) for row in self.curve],
+            )
+        return out
+
+    def write_pictures(self, out_dir, dpi: int) -> None:
+        if not self.curve:
+            return
+        from matplotlib.figure import Figure
+
+        curve = np.asarray(self.curve)
+        fig = Figure(figsize=(6.0, 3.2))
+        ax = fig.add_subplot()
+        ax.plot(curve[:, 1], curve[:, 2], color="tab:blue", lw=1.5)
+        ax.axhline(curve[:, 2].mean(), color="tab:gray", ls="--", lw=1)
+        ax.set_xlabel("time (s)")
+        ax.set_ylabel("average 3D pose error (mm)")
+        ax.set_title(f"mapping.pose={self.name}: mean {curve[:, 2].mean():.2f} mm")
+        ax.set_ylim(bottom=0)
+        ax.grid(alpha=0.3)
+        fig.tight_layout()
+        path = Path(out_dir) / "pose_error.png"
+        path.parent.mkdir(parents=True, exist_ok=True)
+        fig.savefig(path, dpi=dpi)
+
+    # ---------------------------------------------------------------- resume
+    def state(self) -> dict:
+        return {
+            "history": [p.tolist() for p in self.history],
+            "curve": [list(row) for row in self.curve],
+            "kept": dict(self.kept),
+            "tracked_frames": self.tracked_frames,
+        }
+
+    def load_state(self, state: dict) -> None:
+        self.history = [np.asarray(p, dtype=np.float64) for p in state.get("history", [])]
+        self.curve = [list(row) for row in state.get("curve", [])]
+        self.kept = {str(k): int(v) for k, v in state.get("kept", {}).items()}
+        self.tracked_frames = int(state.get("tracked_frames", 0))
+        if self.history:
+            self.last_estimate = self.history[-1]
+
+
+def build_pose_source(pose: str, obj=None, tracker: PoseTracker | None = None) -> PoseSource:
     """The pose source named by `mapping.pose`."""
     from neuralfeels_sem.mapping.mapper import resolve_pose_source
 
     resolve_pose_source(pose)
-    return PoseSource()
+    if pose == "gt":
+        return PoseSource()
+    if pose == "track_known_shape" and obj is None:
+        raise ConfigError(
+            "mapping.pose=track_known_shape needs a ground-truth object mesh; use mapping.pose=track"
+        )
+    return TrackedPose(pose, obj, tracker)

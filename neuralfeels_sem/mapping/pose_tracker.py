@@ -1,0 +1,283 @@
+"""Object pose tracking against a signed distance field (NeuralFeels' pose optimiser).
+
+Points observed in the world (camera and touch) should lie on the object's zero level
+set: with q_i = object_T_world p_i the residual is r_i = sdf(q_i). Levenberg-Marquardt on
+a left se(3) increment xi = (v, w), q_i <- exp(xi) q_i ~ q_i + w x q_i + v, whose
+Jacobian row is [g_i, q_i x g_i] with g_i the SDF gradient at q_i (autograd). Robust
+weights (Huber or Cauchy) keep points on parts of the surface the field has not learned
+yet from dragging the pose; a prior residual pulls toward the motion model's prediction
+and holds directions the points cannot see (a sphere's spin).
+"""
+
+from __future__ import annotations
+
+import logging
+from collections.abc import Callable, Mapping
+
+import numpy as np
+import torch
+from torch import Tensor
+
+from neuralfeels_sem.utils.geometry import check_pose, invert_pose
+
+log = logging.getLogger(__name__)
+
+ROBUST_LOSSES = ("huber", "cauchy")
+
+
+def _skew(w: np.ndarray) -> np.ndarray:
+    return np.array([[0.0, -w[2], w[1]], [w[2], 0.0, -w[0]], [-w[1], w[0], 0.0]])
+
+
+def se3_exp(xi: np.ndarray) -> np.ndarray:
+    """xi = (v, w) (6,) -> 4x4 rigid transform (Rodrigues, exact for any angle)."""
+    xi = np.asarray(xi, dtype=np.float64)
+    if xi.shape != (6,):
+        raise ValueError(f"se3_exp needs a (6,) vector, got {xi.shape}")
+    v, w = xi[:3], xi[3:]
+    theta = float(np.linalg.norm(w))
+    k = _skew(w)
+    if theta < 1e-8:
+        rot = np.eye(3) + k
+        jac = np.eye(3) + 0.5 * k
+    else:
+        a = np.sin(theta) / theta
+        b = (1.0 - np.cos(theta)) / theta**2
+        c = (theta - np.sin(theta)) / theta**3
+        rot = np.eye(3) + a * k + b * (k @ k)
+        jac = np.eye(3) + b * k + c * (k @ k)
+    out = np.eye(4)
+    out[:3, :3] = rot
+    out[:3, 3] = jac @ v
+    return out
+
+
+def se3_log(pose: np.ndarray) -> np.ndarray:
+    """4x4 rigid transform -> xi = (v, w) (6,), the inverse of se3_exp (angles below pi)."""
+    check_pose(pose, "pose")
+    rot = pose[:3, :3]
+    cos = np.clip((np.trace(rot) - 1.0) / 2.0, -1.0, 1.0)
+    theta = float(np.arccos(cos))
+    vee = np.array([rot[2, 1] - rot[1, 2], rot[0, 2] - rot[2, 0], rot[1, 0] - rot[0, 1]])
+    if theta < 1e-8:
+        w = 0.5 * vee
+    else:
+        w = theta / (2.0 * np.sin(theta)) * vee
+    k = _skew(w)
+    if theta < 1e-8:
+        jac_inv = np.eye(3) - 0.5 * k
+    else:
+        half = 0.5 * theta
+        jac_inv = np.eye(3) - 0.5 * k + (1.0 - half / np.tan(half)) / theta**2 * (k @ k)
+    return np.concatenate([jac_inv @ pose[:3, 3], w])
+
+
+def constant_velocity(poses: list[np.ndarray]) -> np.ndarray:
+    """Next world_T_object if the last body-frame motion repeats (the last pose when alone)."""
+    if not poses:
+        raise ValueError("constant_velocity needs at least one pose")
+    if len(poses) == 1:
+        return poses[-1].copy()
+    step = invert_pose(poses[-2]) @ poses[-1]
+    return poses[-1] @ step
+
+
+def robust_weights(r: Tensor, loss: str, scale: float) -> tuple[Tensor, Tensor]:
+    """IRLS weights w(r) and the loss rho(r) (both (N,)), with rho ~ r^2 near zero."""
+    a = r.abs()
+    if loss == "huber":
+        w = torch.where(a <= scale, torch.ones_like(a), scale / a.clamp_min(1e-12))
+        rho = torch.where(a <= scale, r * r, 2.0 * scale * a - scale * scale)
+    elif loss == "cauchy":
+        z = (r / scale) ** 2
+        w = 1.0 / (1.0 + z)
+        rho = scale * scale * torch.log1p(z)
+    else:
+        raise ValueError(f"robust loss {loss!r} is not one of {ROBUST_LOSSES}")
+    return w, rho
+
+
+class PoseTracker:
+    """Levenberg-Marquardt alignment of world points to an object-frame SDF."""
+
+    def __init__(
+        self,
+        iterations: int = 15,
+        robust_loss: str = "cauchy",
+        robust_scale: float = 0.002,
+        min_points: int = 50,
+        damping: float = 1e-3,
+        prior_weight: float = 0.01,
+        rotation_scale: float = 0.05,
+        max_points_per_source: int = 1000,
+        source_weights: Mapping[str, float] | None = None,
+        tolerance: float = 1e-7,
+        seed: int = 0,
+    ) -> None:
+        """
+        robust_scale: metres where the robust loss stops being quadratic.
+        prior_weight: weight of the squared distance to the predicted pose, relative to the
+            mean squared SDF residual (translation in metres, rotation times rotation_scale).
+        rotation_scale: metres per radian in the prior (about the object's radius: the
+            surface displacement a rotation causes).
+        source_weights: per-point weight by source ("camera", or a finger name; "tactile"
+            applies to every finger); 0 drops that modality from tracking.
+        """
+        if iterations < 1:
+            raise ValueError(f"iterations={iterations} must be >= 1")
+        if robust_loss not in ROBUST_LOSSES:
+            raise ValueError(f"robust_loss={robust_loss!r} must be one of {ROBUST_LOSSES}")
+        for name, value in {
+            "robust_scale": robust_scale,
+            "damping": damping,
+            "rotation_scale": rotation_scale,
+            "tolerance": tolerance,
+        }.items():
+            if value <= 0:
+                raise ValueError(f"{name}={value} must be > 0")
+        if prior_weight < 0:
+            raise ValueError(f"prior_weight={prior_weight} must be >= 0")
+        if min_points < 6 or max_points_per_source < 1:
+            raise ValueError(
+                f"min_points={min_points} must be >= 6 (six pose unknowns) and "
+                f"max_points_per_source={max_points_per_source} >= 1"
+            )
+        weights = dict(source_weights or {})
+        if any(w < 0 for w in weights.values()):
+            raise ValueError(f"source_weights={weights} must be >= 0")
+        self.iterations = iterations
+        self.robust_loss = robust_loss
+        self.robust_scale = float(robust_scale)
+        self.min_points = min_points
+        self.damping = float(damping)
+        self.prior_weight = float(prior_weight)
+        self.rotation_scale = float(rotation_scale)
+        self.max_points_per_source = max_points_per_source
+        self.source_weights = weights
+        self.tolerance = float(tolerance)
+        self.generator = torch.Generator().manual_seed(int(seed))
+
+    def source_weight(self, source: str) -> float:
+        if source in self.source_weights:
+            return float(self.source_weights[source])
+        default = "camera" if source == "camera" else "tactile"
+        return float(self.source_weights.get(default, 1.0))
+
+    def _gather(self, points_world: Mapping[str, Tensor]) -> tuple[Tensor, Tensor]:
+        """All usable points (N, 3) float64 and their per-point source weights (N,)."""
+        pts, weights = [], []
+        for source, p in points_world.items():
+            p = torch.as_tensor(p, dtype=torch.float64)
+            if p.ndim != 2 or p.shape[1] != 3:
+                raise ValueError(f"points of {source} must have shape (N, 3), got {tuple(p.shape)}")
+            w = self.source_weight(source)
+            p = p[torch.isfinite(p).all(dim=1)]
+            if w == 0 or len(p) == 0:
+                continue
+            if len(p) > self.max_points_per_source:
+                keep = torch.randperm(len(p), generator=self.generator)[
+                    : self.max_points_per_source
+                ]
+                p = p[keep]
+            pts.append(p)
+            weights.append(torch.full((len(p),), w, dtype=torch.float64))
+        if not pts:
+            return torch.zeros((0, 3), dtype=torch.float64), torch.zeros(0, dtype=torch.float64)
+        return torch.cat(pts), torch.cat(weights)
+
+    def _linearise(
+        self, sdf_fn: Callable[[Tensor], Tensor], object_T_world: np.ndarray, pts: Tensor
+    ) -> tuple[Tensor, Tensor, Tensor]:
+        """Object-frame points q, residuals r = sdf(q) and gradients d sdf / d q (float64)."""
+        t = torch.as_tensor(object_T_world, dtype=torch.float64)
+        q = pts @ t[:3, :3].T + t[:3, 3]
+        with torch.enable_grad():
+            x = q.to(torch.float32).requires_grad_(True)
+            sdf = sdf_fn(x)
+            if sdf.shape != (len(x),):
+                sdf = sdf.reshape(len(x))
+            (grad,) = torch.autograd.grad(sdf.sum(), x)
+        return q, sdf.detach().to(torch.float64), grad.to(torch.float64)
+
+    def _cost(
+        self, r: Tensor, weights: Tensor, prior_err: np.ndarray | None
+    ) -> tuple[float, Tensor]:
+        w_robust, rho = robust_weights(r, self.robust_loss, self.robust_scale)
+        data = float((weights * rho).sum() / weights.sum())
+        prior = 0.0
+        if prior_err is not None:
+            scaled = prior_err * self._prior_scale()
+            prior = self.prior_weight * float(scaled @ scaled)
+        return data + prior, w_robust * weights
+
+    def _prior_scale(self) -> np.ndarray:
+        return np.array([1.0, 1.0, 1.0] + [self.rotation_scale] * 3)
+
+    def track(
+        self,
+        points_world: Mapping[str, Tensor | np.ndarray],
+        sdf_fn: Callable[[Tensor], Tensor],
+        init_world_T_object: np.ndarray,
+        prior: np.ndarray | None = None,
+    ) -> tuple[np.ndarray, dict]:
+        """world_T_object that puts the points on sdf_fn's zero level set, and a report.
+
+        points_world: (N, 3) world-frame points per source. sdf_fn: (N, 3) float32
+        object-frame points -> (N,) signed distances, differentiable in its input.
+        prior: the predicted world_T_object the prior pulls toward (None: no prior).
+        With fewer than `min_points` points the prior (else the initial pose) comes back
+        unchanged with info["skipped"] set.
+        """
+        check_pose(init_world_T_object, "init_world_T_object")
+        if prior is not None:
+            check_pose(prior, "prior")
+        pts, weights = self._gather(points_world)
+        info: dict = {"points": len(pts), "iterations": 0, "skipped": None}
+        fallback = (prior if prior is not None else init_world_T_object).copy()
+        if len(pts) < self.min_points:
+            info["skipped"] = f"too few points ({len(pts)} < {self.min_points})"
+            log.warning("pose tracking kept the predicted pose: %s", info["skipped"])
+            return fallback, info
+        pred_world_T_object = prior
+        obj_T_world = invert_pose(np.asarray(init_world_T_object, dtype=np.float64))
+
+        def prior_error(t: np.ndarray) -> np.ndarray | None:
+            # Left error of object_T_world against the prediction: exp(xi) shifts it by ~xi.
+            if pred_world_T_object is None or self.prior_weight == 0:
+                return None
+            return se3_log(t @ pred_world_T_object)
+
+        q, r, g = self._linearise(sdf_fn, obj_T_world, pts)
+        err = prior_error(obj_T_world)
+        cost, w = self._cost(r, weights, err)
+        info["initial_rms_mm"] = 1e3 * float(torch.sqrt((weights * r * r).sum() / weights.sum()))
+        mu = self.damping
+        prior_h = self.prior_weight * np.diag(self._prior_scale() ** 2)
+        for it in range(self.iterations):
+            info["iterations"] = it + 1
+            jac = torch.cat([g, torch.linalg.cross(q, g)], dim=1)
+            norm = float(weights.sum())
+            h = ((jac * w[:, None]).T @ jac).numpy() / norm
+            b = ((jac * w[:, None]).T @ r).numpy() / norm
+            if err is not None:
+                h = h + prior_h
+                b = b + prior_h @ err
+            step = None
+            while mu < 1e8:
+                lhs = h + mu * np.diag(np.diag(h) + 1e-12)
+                delta = -np.linalg.solve(lhs, b)
+                cand = se3_exp(delta) @ obj_T_world
+                q_c, r_c, g_c = self._linearise(sdf_fn, cand, pts)
+                err_c = prior_error(cand)
+                cost_c, w_c = self._cost(r_c, weights, err_c)
+                if cost_c <= cost:
+                    step = delta
+                    obj_T_world, q, r, g, err, cost, w = cand, q_c, r_c, g_c, err_c, cost_c, w_c
+                    mu = max(mu / 10.0, 1e-9)
+                    break
+                mu *= 10.0
+            if step is None or np.linalg.norm(step) < self.tolerance:
+                break
+        info["final_rms_mm"] = 1e3 * float(torch.sqrt((weights * r * r).sum() / weights.sum()))
+        info["cost"] = cost
+        return invert_pose(obj_T_world), info
