@@ -162,9 +162,12 @@ class DigitRenderer:
             self._seg_map[node] = seg_colour(label)
         # The scene is in the sensor frame: the camera is fixed, the object moves.
         # Far plane just past the deepest reach: the rasteriser skips the rest of the object.
-        camera = intrinsics_camera(
-            DIGIT_INTRINSICS, znear=1e-3, zfar=float(self._reach.max()) + 1e-3
-        )
+        self._znear, self._zfar = 1e-3, float(self._reach.max()) + 1e-3
+        camera = intrinsics_camera(DIGIT_INTRINSICS, znear=self._znear, zfar=self._zfar)
+        # For culling: a triangle can only reach the view volume if one of its vertices is
+        # within one (longest) edge length of it.
+        self._vertices = np.asarray(obj.mesh.vertices, np.float64)
+        self._max_edge = float(obj.mesh.edges_unique_length.max()) if len(obj.mesh.faces) else 0.0
         self._scene.add(camera, pose=opengl_camera_pose(np.eye(4)))
         self._gl = LazyOffscreen(DIGIT_WIDTH, DIGIT_HEIGHT)
 
@@ -191,12 +194,35 @@ class DigitRenderer:
         check_pose(world_T_object, "world_T_object")
         check_pose(world_T_sensor, "world_T_sensor")
         sensor_T_object = invert_pose(world_T_sensor) @ world_T_object
+        if not self._may_be_visible(sensor_T_object):
+            return np.zeros((DIGIT_HEIGHT, DIGIT_WIDTH), np.float32), np.full(
+                (DIGIT_HEIGHT, DIGIT_WIDTH), IGNORE, np.int16
+            )
         for node in self._nodes:
             self._scene.set_pose(node, sensor_T_object)
         seg, depth = self._gl.get().render(
             self._scene, flags=pyrender.RenderFlags.SEG, seg_node_map=self._seg_map
         )
         return depth.astype(np.float32, copy=False), decode_seg(seg)
+
+    def _may_be_visible(self, sensor_T_object: np.ndarray) -> bool:
+        """Conservative test: could any triangle reach the (short) view volume of the gel?
+
+        Most fingers are out of contact most of the time; this skips their GL pass.
+        """
+        points = self._vertices @ sensor_T_object[:3, :3].T + sensor_T_object[:3, 3]
+        margin = self._max_edge
+        z = points[:, 2]
+        k = DIGIT_INTRINSICS
+        half_x = (self._zfar + margin) * (k.cx + 1.0) / k.fx + margin
+        half_y = (self._zfar + margin) * (k.cy + 1.0) / k.fy + margin
+        inside = (
+            (z > self._znear - margin)
+            & (z < self._zfar + margin)
+            & (np.abs(points[:, 0]) < half_x)
+            & (np.abs(points[:, 1]) < half_y)
+        )
+        return bool(inside.any())
 
     def render(self, world_T_object: np.ndarray, world_T_sensor: np.ndarray) -> TactileRender:
         depth, labels = self.render_geometry(world_T_object, world_T_sensor)

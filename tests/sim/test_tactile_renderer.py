@@ -296,3 +296,28 @@ def test_depth_smoothing_hides_mesh_facets_but_not_ground_truth() -> None:
     error_raw = np.abs(raw.image - reference)[interior].mean()
     error_smoothed = np.abs(smoothed.image - reference)[interior].mean()
     assert error_smoothed < 0.6 * error_raw, (error_smoothed, error_raw)
+
+
+def test_culling_skips_far_objects_and_never_drops_a_contact(two_material: DigitRenderer) -> None:
+    rng = np.random.default_rng(7)
+    world_T_object = _pose()
+    culled = 0
+    for _ in range(12):
+        point = rng.normal(size=3)
+        press = rng.uniform(-6e-3, 1.5e-3)
+        world_T_sensor = _press(
+            world_T_object, point / np.linalg.norm(point), press, roll=rng.uniform(0, 6)
+        )
+        sensor_T_object = invert_pose(world_T_sensor) @ world_T_object
+        visible = two_material._may_be_visible(sensor_T_object)
+        culled += not visible
+        if not visible:
+            two_material._may_be_visible = lambda _pose: True  # force the GL pass
+            try:
+                forced = two_material.render(world_T_object, world_T_sensor)
+            finally:
+                del two_material._may_be_visible
+            assert not forced.depth.any()
+        if press > 0:
+            assert visible
+    assert culled > 0
