@@ -68,7 +68,6 @@ def run(cfg: DictConfig) -> dict:
     per_group = int(task.samples_per_class_per_sensor)
     seed = int(task.seed)
     tactile_options = OmegaConf.to_container(task.tactile, resolve=True)
-    _prepare_root(root, bool(task.overwrite))
 
     sources = primitive_objects(class_names) + library_objects(
         list(task.library_objects), class_names
@@ -82,6 +81,7 @@ def run(cfg: DictConfig) -> dict:
         raise ConfigError(
             f"no object has material(s) {missing}: check materials= and task.library_objects"
         )
+    _prepare_root(root, bool(task.overwrite))  # after every config check: no empty folder left
 
     # Assign every (sensor, class, k) sample to a source object up front, so that each
     # object's renderers are built once and every sample is repeatable from the seed.

@@ -65,6 +65,7 @@ def test_refuses_a_non_empty_root_and_unknown_objects(tmp_path: Path) -> None:
         run(_cfg(root))
     with pytest.raises(ConfigError, match="nope"):
         run(_cfg(tmp_path / "other", "task.library_objects=[nope]"))
+    assert not (tmp_path / "other").exists()  # nothing written before the config is checked
 
 
 def test_touch_samples_lie_on_the_labelled_faces() -> None:
@@ -82,6 +83,7 @@ def test_touch_samples_lie_on_the_labelled_faces() -> None:
         sample_touch(objects[0], 3, rng)  # a plastic primitive has no wood faces
 
 
+@pytest.mark.slow  # a fresh interpreter (torch, hydra, GL imports): tens of seconds on 2 cores
 def test_cli_bad_object_exits_2_with_one_line(tmp_path: Path) -> None:
     result = run_cli(
         [
