@@ -1,7 +1,8 @@
 """Rendering speed of the simulated rig: 4 DIGITs + 1 RGB-D camera per frame.
 
 Object: a 2-material icosphere of 3 cm radius (20k faces, like the shipped objects). Fingers press at
-different places (0.4-1.0 mm: typical patches of a grasp); one extra case with no contact.
+different places (0.4-1.0 mm: typical patches of a grasp); extra cases: 2 mm from the
+surface (no contact, GL pass still runs) and 2 cm away (culled, no GL pass).
 Target: the whole rig at >= 10 Hz on 2 CPU cores (tactile <= ~12 ms, camera <= ~20 ms).
 """
 
@@ -65,6 +66,10 @@ def run() -> dict:
         lambda: [f.render(world_T_object, p) for f, p in zip(fingers, sensor_poses)]
     )
     free_wall, free_cpu = _ms(lambda: fingers[0].render(world_T_object, away))
+    lifted = pose_pressing(
+        world_T_object[:3, 3] + np.array([0.0, 0.0, 0.03]), np.array([0.0, 0.0, 1.0]), -2e-2
+    )
+    lifted_wall, lifted_cpu = _ms(lambda: fingers[0].render(world_T_object, lifted))
     camera_wall, camera_cpu = _ms(
         lambda: camera.render(world_T_object, occluders=[(finger_link, link_pose)])
     )
@@ -83,6 +88,8 @@ def run() -> dict:
         "tactile_cpu_ms_in_contact": round(contact_cpu / 4, 2),
         "tactile_ms_no_contact": round(free_wall, 2),
         "tactile_cpu_ms_no_contact": round(free_cpu, 2),
+        "tactile_ms_lifted_2cm": round(lifted_wall, 2),
+        "tactile_cpu_ms_lifted_2cm": round(lifted_cpu, 2),
         "camera_ms": round(camera_wall, 2),
         "camera_cpu_ms": round(camera_cpu, 2),
         "rig_ms": round(rig_wall, 2),
