@@ -6,6 +6,8 @@ at the paper's 2^24 table on 2 CPU cores. With `HashGridEncoding(sparse_grad=Tru
 table's gradient is a sparse COO tensor, and FieldAdam updates only the rows it holds, so
 a step costs O(points). Rows absent from a step keep their moments unchanged ("lazy
 Adam", as torch.optim.SparseAdam); bias correction uses the parameter's step count.
+A parameter first updated with a sparse gradient keeps its moments in one tensor
+`moments` (rows, 2, ...) (see `moments()`); others use torch Adam's state names.
 
 Config: `_target_: neuralfeels_sem.fields.optim.FieldAdam`, `_partial_: true`, then
 `factory(field.parameters())`, the same call as torch.optim.Adam.
@@ -54,8 +56,15 @@ class FieldAdam(torch.optim.Optimizer):
                 state = self.state[p]
                 if not state:
                     state["step"] = 0
-                    state["exp_avg"] = torch.zeros_like(p, memory_format=torch.preserve_format)
-                    state["exp_avg_sq"] = torch.zeros_like(p, memory_format=torch.preserve_format)
+                    if p.grad.is_sparse:
+                        # Both moments of a row side by side: one gather and one scatter
+                        # per step instead of two of each (random rows of a large table).
+                        state["moments"] = p.new_zeros((p.shape[0], 2, *p.shape[1:]))
+                    else:
+                        state["exp_avg"] = torch.zeros_like(p, memory_format=torch.preserve_format)
+                        state["exp_avg_sq"] = torch.zeros_like(
+                            p, memory_format=torch.preserve_format
+                        )
                 state["step"] += 1
                 step = state["step"]
                 # Fold both bias corrections into the step size (as torch's Adam does).
@@ -72,7 +81,7 @@ def _dense_update(
 ) -> None:
     if group["weight_decay"] != 0:
         grad = grad.add(p, alpha=group["weight_decay"])
-    exp_avg, exp_avg_sq = state["exp_avg"], state["exp_avg_sq"]
+    exp_avg, exp_avg_sq = moments(state)
     exp_avg.lerp_(grad, 1 - beta1)
     exp_avg_sq.mul_(beta2).addcmul_(grad, grad, value=1 - beta2)
     # eps is added to sqrt(v) / sqrt(bias2); folding sqrt(bias2) into step_size scales eps.
@@ -91,15 +100,33 @@ def _sparse_update(
     if rows.numel() == 0:
         return
     if group["weight_decay"] != 0:
-        values = values.add(p[rows], alpha=group["weight_decay"])
-    exp_avg, exp_avg_sq = state["exp_avg"], state["exp_avg_sq"]
-    m = exp_avg.index_select(0, rows).lerp_(values, 1 - beta1)
-    v = exp_avg_sq.index_select(0, rows).mul_(beta2).addcmul_(values, values, value=1 - beta2)
-    exp_avg.index_copy_(0, rows, m)
-    exp_avg_sq.index_copy_(0, rows, v)
-    denom = v.sqrt_().add_(group["eps"] * math.sqrt(1 - beta2 ** state["step"]))
+        values = values.add(p.index_select(0, rows), alpha=group["weight_decay"])
+    if "moments" in state:
+        mv = state["moments"].index_select(0, rows)
+        # Out-of-place on the strided halves: contiguous results, faster arithmetic below.
+        m = torch.lerp(mv[:, 0], values, 1 - beta1)
+        v = torch.addcmul(mv[:, 1].mul(beta2), values, values, value=1 - beta2)
+        state["moments"].index_copy_(0, rows, torch.stack([m, v], dim=1))
+    else:
+        m = state["exp_avg"].index_select(0, rows).lerp_(values, 1 - beta1)
+        v = state["exp_avg_sq"].index_select(0, rows).mul_(beta2)
+        v.addcmul_(values, values, value=1 - beta2)
+        state["exp_avg"].index_copy_(0, rows, m)
+        state["exp_avg_sq"].index_copy_(0, rows, v)
+    denom = v.sqrt().add_(group["eps"] * math.sqrt(1 - beta2 ** state["step"]))
     # index_copy of the updated rows: index_add_ on CPU is about 6x slower here.
     p.index_copy_(0, rows, p.index_select(0, rows).addcdiv_(m, denom, value=-step_size))
+
+
+def moments(state: dict) -> tuple[Tensor, Tensor]:
+    """(first, second) Adam moments of a parameter's state, whichever layout it uses.
+
+    Parameters first seen with a sparse gradient keep both in `moments` (rows, 2, ...);
+    others keep torch Adam's `exp_avg` and `exp_avg_sq`.
+    """
+    if "moments" in state:
+        return state["moments"][:, 0], state["moments"][:, 1]
+    return state["exp_avg"], state["exp_avg_sq"]
 
 
 def _coalesced_rows(grad: Tensor) -> tuple[Tensor, Tensor]:
