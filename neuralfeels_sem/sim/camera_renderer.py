@@ -73,7 +73,8 @@ def front_left_camera_pose(
     return look_at(target + offset, target)
 
 
-_NOTHING, _TABLE, _OCCLUDER, _FIRST_OBJECT = 0, 1, 2, 3  # segmentation codes
+_NOTHING, _TABLE, _OCCLUDER, _FIRST_OBJECT = 0, 1, 2, 3  # segmentation codes (one uint8 channel)
+_MAX_CACHED_OCCLUDERS = 256
 _AMBIENT, _KEY, _HEAD = 0.3, 0.5, 0.35  # light mix of the numpy shading
 _KEY_DIR_WORLD = np.array([0.3, -0.2, 1.0]) / np.linalg.norm(
     [0.3, -0.2, 1.0]
@@ -118,6 +119,10 @@ class CameraRenderer:
         self._rng = np.random.default_rng(seed)
         # Colour per segmentation code: nothing, table, occluder, then one per object label.
         palette = [(0.0, 0.0, 0.0), TABLE_COLOUR, OCCLUDER_COLOUR]
+        if len(obj.class_names) + _FIRST_OBJECT + 1 > 256:
+            raise ValueError(
+                f"the camera renderer handles at most 252 materials, got {len(obj.class_names)}"
+            )
 
         self._scene = pyrender.Scene()
         self._seg_map: dict[pyrender.Node, int] = {}
@@ -178,8 +183,12 @@ class CameraRenderer:
             node = self._occluder_nodes[key][1]
             self._scene.set_pose(node, np.asarray(world_T_mesh, np.float64))
             used.add(key)
-        for key, (_, node) in self._occluder_nodes.items():
+        for key, (_, node) in list(self._occluder_nodes.items()):
             node.mesh.is_visible = key in used
+            # Callers that build new meshes every frame would otherwise grow the scene forever.
+            if key not in used and len(self._occluder_nodes) > _MAX_CACHED_OCCLUDERS:
+                self._scene.remove_node(node)
+                del self._seg_map[node], self._occluder_nodes[key]
 
     def render(
         self,

@@ -154,3 +154,16 @@ def test_bad_arguments_raise() -> None:
         renderer.render(np.eye(3))
     with pytest.raises(ValueError):
         renderer.set_camera_pose(np.eye(3))
+
+
+def test_occluder_cache_stays_bounded_when_callers_rebuild_meshes(
+    camera: CameraRenderer, monkeypatch
+) -> None:
+    from neuralfeels_sem.sim import camera_renderer
+
+    monkeypatch.setattr(camera_renderer, "_MAX_CACHED_OCCLUDERS", 6)
+    far = np.eye(4)
+    far[:3, 3] = (2.0, 2.0, 2.0)
+    for _ in range(15):
+        camera.render(_pose(), occluders=[(trimesh.creation.box(extents=(0.01, 0.01, 0.01)), far)])
+    assert len(camera._occluder_nodes) <= 7
