@@ -96,6 +96,45 @@ class _SingleSampleRenderer(_pyrender_renderer.Renderer):
         finally:
             _pyrender_renderer.glRenderbufferStorageMultisample = allocate
 
+    def _read_main_framebuffer(
+        self, scene: pyrender.Scene, flags: int
+    ) -> np.ndarray | tuple[np.ndarray, np.ndarray]:
+        """pyrender's read-back without the multisample resolve (the buffer is single-sample).
+
+        Reads straight from the framebuffer we drew into and linearises depth without
+        boolean-mask indexing; same outputs as pyrender (depth 0 where nothing was drawn).
+        """
+        from OpenGL.GL import (
+            GL_DEPTH_COMPONENT,
+            GL_FLOAT,
+            GL_READ_FRAMEBUFFER,
+            GL_RGB,
+            GL_RGBA,
+            GL_UNSIGNED_BYTE,
+            glBindFramebuffer,
+            glReadPixels,
+        )
+
+        width, height = self._main_fb_dims
+        glBindFramebuffer(GL_READ_FRAMEBUFFER, self._main_fb_ms)
+        raw = np.frombuffer(
+            glReadPixels(0, 0, width, height, GL_DEPTH_COMPONENT, GL_FLOAT), np.float32
+        )
+        raw = raw.reshape(height, width)[::-1]
+        znear, zfar = scene.main_camera_node.camera.znear, scene.main_camera_node.camera.zfar
+        ndc = 2.0 * raw - 1.0
+        if zfar is None:
+            depth = (2.0 * znear) / (1.0 - ndc)
+        else:
+            depth = (2.0 * znear * zfar) / (zfar + znear - ndc * (zfar - znear))
+        depth[raw == 1.0] = 0.0
+        depth = depth.astype(np.float32, copy=False)
+        if flags & pyrender.RenderFlags.DEPTH_ONLY:
+            return depth
+        channels, fmt = (4, GL_RGBA) if flags & pyrender.RenderFlags.RGBA else (3, GL_RGB)
+        colour = np.frombuffer(glReadPixels(0, 0, width, height, fmt, GL_UNSIGNED_BYTE), np.uint8)
+        return colour.reshape(height, width, channels)[::-1], depth
+
 
 class _OffscreenKeepingDisplay(pyrender.OffscreenRenderer):
     """OffscreenRenderer whose delete() frees only its own EGL context.
