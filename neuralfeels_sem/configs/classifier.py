@@ -16,8 +16,8 @@ class EfficientNetClassifierConfig:
     checkpoint: str | None = None  # null = the shipped assets/classifier/classifier.pt
     device: str = "auto"
     min_confidence: float = 0.6
-    contact_threshold: float = 40.0
-    contact_min_area: float = 0.02
+    contact_threshold: float = 30.0
+    contact_min_area: float = 0.01
     contact_blur_px: float = 3.0
     background_dir: str | None = None
     first_frame_background: bool = True

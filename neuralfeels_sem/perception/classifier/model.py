@@ -17,13 +17,18 @@ from neuralfeels_sem.errors import DataError
 
 ARCH = "efficientnet-b0"
 HEAD_KEYS = ("_fc.weight", "_fc.bias")
+# The library keeps TensorFlow's BatchNorm decay of 0.99 (PyTorch momentum 0.01): its
+# running statistics lag hundreds of steps behind the weights, so on a few thousand
+# tactile images the eval-mode model is near chance for many epochs. PyTorch's usual
+# momentum 0.1 (decay 0.9) tracks within a few dozen steps. Not part of the weights.
+BN_DECAY = 0.9
 
 
 def build_model(num_classes: int, weights: str | Path | None = None) -> nn.Module:
     """EfficientNet-B0 with a fresh `num_classes` head, backbone from `weights` if given."""
     if num_classes < 2:
         raise ValueError(f"num_classes={num_classes} must be >= 2")
-    model = EfficientNet.from_name(ARCH, num_classes=num_classes)
+    model = EfficientNet.from_name(ARCH, num_classes=num_classes, batch_norm_momentum=BN_DECAY)
     if weights is not None:
         load_backbone(model, weights)
     return model
