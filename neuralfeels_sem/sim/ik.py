@@ -49,7 +49,7 @@ class FingertipIK:
         self,
         model: mujoco.MjModel,
         data: mujoco.MjData,
-        iterations: int = 40,
+        iterations: int = 25,
         damping: float = 1e-6,
         normal_weight: float = 0.5,
         tolerance_m: float = 1e-4,
@@ -103,14 +103,13 @@ class FingertipIK:
                 jp, jr = self._jacp[:, dofs], self._jacr[:, dofs]
                 # Position first (damped least squares); the pad direction only in the
                 # position task's null space (4 joints - 3 = 1 spare degree of freedom).
-                jp_pinv = jp.T @ np.linalg.inv(jp @ jp.T + eye3)
-                dq = jp_pinv @ err_p
-                # An exact projector (undamped pseudo-inverse), else the secondary task leaks
-                # into the position and slows it down.
-                jrn = jr @ (np.eye(4) - np.linalg.pinv(jp, rcond=1e-4) @ jp)
-                dq += self.normal_weight * (
-                    jrn.T @ np.linalg.solve(jrn @ jrn.T + 1e-2 * np.eye(3), err_r - jr @ dq)
-                )
+                dq = jp.T @ np.linalg.solve(jp @ jp.T + eye3, err_p)
+                # The position task's exact null space is the one direction n with jp @ n = 0
+                # (generalised cross product of jp's rows); move along it toward the pad
+                # target. Damping there would leak into the position and slow it down.
+                n = _null_direction(jp)
+                jrn = jr @ n
+                dq += self.normal_weight * n * (jrn @ (err_r - jr @ dq)) / (jrn @ jrn + 1e-2)
                 step = np.abs(dq).max()
                 if step > MAX_STEP_RAD:  # keep linearisation steps small near singularities
                     dq *= MAX_STEP_RAD / step
@@ -120,7 +119,7 @@ class FingertipIK:
                 self.data.qpos[adr] = np.clip(before + dq, lim[:, 0], lim[:, 1])
                 # Converged on position, or stalled (the normal cannot be matched any better).
                 moved = np.abs(self.data.qpos[adr] - before).max()
-                if (errors[finger] < self.tolerance_m and moved < 1e-3) or moved < 1e-5:
+                if (errors[finger] < self.tolerance_m and moved < 5e-3) or moved < 1e-5:
                     active.discard(finger)
             if not active:
                 break
@@ -130,6 +129,20 @@ class FingertipIK:
                 np.linalg.norm(targets[finger].gel_position - self.gel_pose(finger)[0])
             )
         return errors
+
+
+_DROP_ONE = np.array([[1, 2, 3], [0, 2, 3], [0, 1, 3], [0, 1, 2]])
+_SIGNS = np.array([1.0, -1.0, 1.0, -1.0])
+
+
+def _null_direction(jac: np.ndarray) -> np.ndarray:
+    """Unit vector spanning the null space of a (3, 4) Jacobian (zero if it is rank-deficient).
+
+    Its entries are the signed 3x3 minors of jac (the generalised cross product of its rows).
+    """
+    n = _SIGNS * np.linalg.det(jac[:, _DROP_ONE].transpose(1, 0, 2))
+    norm = np.sqrt(n @ n)
+    return n / norm if norm > 1e-12 else np.zeros(4)
 
 
 def _cross(a: np.ndarray, b: np.ndarray) -> np.ndarray:
