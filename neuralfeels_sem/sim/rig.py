@@ -19,7 +19,12 @@ import numpy as np
 from neuralfeels_sem.objects.material_object import MaterialObject
 from neuralfeels_sem.sensors.frame import FINGERS
 from neuralfeels_sem.sim.camera_renderer import front_left_camera_pose
-from neuralfeels_sem.sim.digit_geometry import GEL_HEIGHT_M, GEL_WIDTH_M, MAX_PENETRATION_M
+from neuralfeels_sem.sim.digit_geometry import (
+    GEL_DISTANCE_M,
+    GEL_HEIGHT_M,
+    GEL_WIDTH_M,
+    MAX_PENETRATION_M,
+)
 from neuralfeels_sem.sim.hand_model import PALM_FACE_X
 from neuralfeels_sem.sim.ik import FingerTarget, FingertipIK
 from neuralfeels_sem.sim.kinematics import HandKinematics
@@ -51,7 +56,10 @@ _GRID = np.stack(
     ),
     -1,
 ).reshape(-1, 2)
-_PROBE_BACK_M = 0.01  # press probes start this far behind the gel surface
+_PROBE_BACK_M = 0.01  # centre probes start this far behind the gel surface
+# Unit rays from the DIGIT camera through the grid points on the gel (sensor frame).
+_GRID_RAYS = np.column_stack([_GRID, np.full(len(_GRID), GEL_DISTANCE_M)])
+_GRID_RAYS /= np.linalg.norm(_GRID_RAYS, axis=1, keepdims=True)
 
 
 @dataclass
@@ -139,6 +147,9 @@ class SimRig:
             i = FINGERS.index(f)
             self.q[4 * i : 4 * i + 4] = NOMINAL_Q[4 * i : 4 * i + 4]
         self._sliding: dict[str, int] = {}  # finger -> cycle in which it is touching
+        self._sensor_sites = {f: self.scene.model.site(f"{f}_digit").id for f in FINGERS}
+        self._ray_geoms = np.zeros(len(_GRID_RAYS), np.int32)
+        self._ray_dist = np.zeros(len(_GRID_RAYS))
         self.scene.set_state(self.q, self.trajectory.pose(0.0))
 
     @staticmethod
@@ -226,17 +237,34 @@ class SimRig:
 
     # ------------------------------------------------------------------ per time step
     def press_depth(self, finger: str) -> float:
-        """Deepest reach of the object past the gel surface over the gel area (m; <= 0 = none)."""
-        pos, pad = self.ik.gel_pose(finger)
-        sid = self.ik.site_ids[finger]
+        """Deepest reach of the object past the gel surface over the gel area (m; <= 0 = gap).
+
+        Rays from the DIGIT's camera through a 5 x 5 grid on the gel, the renderer's own
+        definition of depth (along the sensor's +z). Returns -_PROBE_BACK_M when nothing is
+        in view within 10 cm.
+        """
+        sid = self._sensor_sites[finger]
         rot = self.scene.data.site_xmat[sid].reshape(3, 3)
-        deepest = -np.inf
-        for gx, gy in _GRID:
-            start = pos + gx * rot[:, 0] + gy * rot[:, 1] - _PROBE_BACK_M * pad
-            dist, _ = self.scene.ray_object(start, pad)
-            if dist >= 0:
-                deepest = max(deepest, _PROBE_BACK_M - dist)
-        return float(deepest) if np.isfinite(deepest) else -_PROBE_BACK_M
+        directions = np.ascontiguousarray((_GRID_RAYS @ rot.T).ravel())
+        mujoco.mj_multiRay(
+            self.scene.model,
+            self.scene.data,
+            self.scene.data.site_xpos[sid].copy(),
+            directions,
+            self.scene.object_groups,
+            1,
+            -1,
+            self._ray_geoms,
+            self._ray_dist,
+            None,
+            len(_GRID_RAYS),
+            0.1,
+        )
+        hit = self._ray_dist >= 0
+        if not hit.any():
+            return -_PROBE_BACK_M
+        depth = self._ray_dist[hit] * _GRID_RAYS[hit, 2]  # along +z of the sensor
+        return float(GEL_DISTANCE_M - depth.min())
 
     def _centre_hit(self, finger: str) -> tuple[np.ndarray, np.ndarray] | None:
         """Object surface point (world) in front of the gel centre along the pad, and its normal."""

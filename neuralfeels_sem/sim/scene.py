@@ -89,8 +89,8 @@ class SimScene:
         self.object_body = self.model.body("object").id
         self._mocap = self.model.body_mocapid[self.object_body]
         self._sensor_sites = {f: self.model.site(f"{f}_digit").id for f in FINGERS}
-        self._groups = np.zeros(6, np.uint8)
-        self._groups[OBJECT_GROUP] = 1
+        self.object_groups = np.zeros(6, np.uint8)  # ray casts see only the object
+        self.object_groups[OBJECT_GROUP] = 1
         self._hand_meshes: list[tuple[int, trimesh.Trimesh]] | None = None
         mujoco.mj_forward(self.model, self.data)
 
@@ -159,7 +159,7 @@ class SimScene:
             self.data if data is None else data,
             np.asarray(origin, np.float64),
             np.asarray(direction, np.float64),
-            self._groups,
+            self.object_groups,
             1,
             -1,
             geomid,
