@@ -125,6 +125,26 @@ def test_unlabelled_touches_do_not_train_the_material_branch(label_kind: str) ->
     )
 
 
+def test_a_few_steps_pull_the_sdf_toward_the_truth() -> None:
+    """Fast check that optimisation works at all (the full fit below is marked slow)."""
+    mapper = make_mapper(steps_per_frame=1, warmup_steps=1)
+    frame, labels = sphere_frames(1, touches_per_frame=4)[0]
+    mapper.add_frame(frame, labels)
+    surface = torch.tensor(mapper.frame_points(frame, frame.world_T_object)["camera"], dtype=torch.float32)
+    normals = surface / surface.norm(dim=1, keepdim=True)
+
+    def band_error() -> float:
+        with torch.no_grad():
+            return sum((mapper.field.sdf(surface + d * normals) - d).abs().mean().item() for d in (-0.003, 0.003)) / 2
+
+    before = band_error()
+    mapper.optimize(40)
+    after = band_error()
+    assert before > 2e-3  # an untrained field is near zero everywhere
+    assert after < 0.5 * before, (before, after)
+
+
+@pytest.mark.slow
 def test_field_fits_sphere_sdf_below_2mm() -> None:
     mapper = make_mapper()
     for frame, labels in sphere_frames(10, touches_per_frame=4):
@@ -140,6 +160,7 @@ def test_field_fits_sphere_sdf_below_2mm() -> None:
     assert max(band) < 2e-3, band
 
 
+@pytest.mark.slow
 @pytest.mark.parametrize("concat", [True, False])
 def test_material_split_from_sparse_touches(concat: bool) -> None:
     mapper = make_mapper(concat=concat, steps_per_frame=15, warmup_steps=30)
