@@ -11,11 +11,19 @@ import torch
 from neuralfeels_sem.errors import DataError
 from neuralfeels_sem.perception.classifier.checkpoint import load_checkpoint
 from neuralfeels_sem.perception.classifier.model import build_model
-from neuralfeels_sem.perception.classifier.train import BEST, LAST, TrainSettings, train
+from neuralfeels_sem.perception.classifier.train import (
+    BEST,
+    LAST,
+    TrainSettings,
+    recalibrate_batchnorm,
+    train,
+)
 from neuralfeels_sem.perception.classifier.transforms import (
     IMAGENET_MEAN,
     IMAGENET_STD,
+    normalize,
     resize_batch,
+    to_tensor,
 )
 from tests.perception.synthetic_tactile import CLASSES, pressed
 
@@ -88,3 +96,19 @@ def test_too_little_data_is_a_data_error(arrays, tmp_path: Path) -> None:
     x, y, vx, vy = arrays
     with pytest.raises(DataError, match="too few images"):
         fit((x[:1], y[:1], vx, vy), tmp_path, max_epochs=1)
+
+
+def test_batchnorm_recalibration_uses_current_weights() -> None:
+    torch.manual_seed(0)
+    conv = torch.nn.Conv2d(3, 4, 1)
+    model = torch.nn.Sequential(conv, torch.nn.BatchNorm2d(4, momentum=0.1))
+    model[1].running_mean.fill_(7.0)  # stale statistics from "older weights"
+    images = np.random.default_rng(0).integers(0, 256, (8, 6, 6, 3), dtype=np.uint8)
+    recalibrate_batchnorm(
+        model, images, [0.5, 0.5, 0.5], [0.25, 0.25, 0.25], torch.device("cpu"), batch_size=8
+    )
+    with torch.no_grad():
+        features = conv(normalize(to_tensor(images), [0.5, 0.5, 0.5], [0.25, 0.25, 0.25]))
+    torch.testing.assert_close(model[1].running_mean, features.mean(dim=(0, 2, 3)))
+    torch.testing.assert_close(model[1].running_var, features.var(dim=(0, 2, 3), unbiased=True))
+    assert model[1].momentum == 0.1 and not model.training
