@@ -39,6 +39,7 @@ class Contact:
     point: np.ndarray  # (3,) surface point in front of the gel centre
     normal: np.ndarray  # (3,) outward unit surface normal there
     pad: np.ndarray  # (3,) unit pad direction (sensor +z) the finger can reach there
+    posture: np.ndarray | None = None  # (4,) joint angles from which the IK reached it
 
 
 @dataclass(frozen=True)

@@ -49,6 +49,7 @@ MAX_SHIFT_M = 0.015  # a sampled pad may be at most this far from the surface
 GRAZING_COS = 0.5  # the surface must face the pad within 60 degrees
 HOVER_BACK_M = 0.015  # a finger with nothing to touch waits this far behind its natural place
 PALM_CLEARANCE_M = 0.008
+RETRY_IK_M = 0.001  # IK error above which a finger retries from its contact's posture
 LOST_CONTACT_M = 0.003  # a touching finger further than this from its target gives up the contact
 _GRID = np.stack(
     np.meshgrid(
@@ -231,7 +232,10 @@ class SimRig:
                 object_T_world = invert_pose(world_T_object)
                 rot = object_T_world[:3, :3]
                 return Contact(
-                    point=rot @ point + object_T_world[:3, 3], normal=rot @ normal, pad=rot @ pad
+                    point=rot @ point + object_T_world[:3, 3],
+                    normal=rot @ normal,
+                    pad=rot @ pad,
+                    posture=q.copy(),
                 )
         return None
 
@@ -296,6 +300,22 @@ class SimRig:
             else:
                 targets[f] = FingerTarget(rot @ plan.gel_target + trans, rot @ plan.pad_direction)
         errors = self.ik.solve(targets)
+        for f, plan in plans.items():
+            # A finger stuck in another IK branch restarts from the posture its contact came from.
+            if (
+                errors[f] > RETRY_IK_M
+                and plan.contact is not None
+                and plan.contact.posture is not None
+            ):
+                adr = self.ik.qpos_adr[f]
+                before = self.scene.data.qpos[adr].copy()
+                self.scene.data.qpos[adr] = plan.contact.posture
+                retry = self.ik.solve({f: targets[f]})[f]
+                if retry < errors[f]:
+                    errors[f] = retry
+                else:
+                    self.scene.data.qpos[adr] = before
+                    self.ik.forward()
         press = {f: self.press_depth(f) for f in self.fingers}
         for _ in range(2):  # press control: slide each finger along its pad direction
             shifted = {}
