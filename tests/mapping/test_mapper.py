@@ -170,3 +170,12 @@ def test_material_split_from_sparse_touches(concat: bool) -> None:
     predicted = mapper.field.predict_material(torch.tensor(surface, dtype=torch.float32)).numpy()
     agreement = (predicted == true_label(surface)).mean()
     assert agreement >= 0.98, agreement
+
+
+def test_eikonal_term_trains_through_the_sparse_hash_grid() -> None:
+    mapper = make_mapper(steps_per_frame=2, warmup_steps=2, eikonal_weight=0.1, eikonal_points=64)
+    frame, labels = sphere_frames(1, touches_per_frame=1)[0]
+    losses = mapper.add_frame(frame, labels)
+    assert losses["eikonal"] > 0
+    assert losses["points"] == 128 * 6 + 64 * 6 + 256 + 64
+    assert mapper.trained_on["optimizer_steps"] == 2
