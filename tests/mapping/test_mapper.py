@@ -130,12 +130,20 @@ def test_a_few_steps_pull_the_sdf_toward_the_truth() -> None:
     mapper = make_mapper(steps_per_frame=1, warmup_steps=1)
     frame, labels = sphere_frames(1, touches_per_frame=4)[0]
     mapper.add_frame(frame, labels)
-    surface = torch.tensor(mapper.frame_points(frame, frame.world_T_object)["camera"], dtype=torch.float32)
+    surface = torch.tensor(
+        mapper.frame_points(frame, frame.world_T_object)["camera"], dtype=torch.float32
+    )
     normals = surface / surface.norm(dim=1, keepdim=True)
 
     def band_error() -> float:
         with torch.no_grad():
-            return sum((mapper.field.sdf(surface + d * normals) - d).abs().mean().item() for d in (-0.003, 0.003)) / 2
+            return (
+                sum(
+                    (mapper.field.sdf(surface + d * normals) - d).abs().mean().item()
+                    for d in (-0.003, 0.003)
+                )
+                / 2
+            )
 
     before = band_error()
     mapper.optimize(40)
