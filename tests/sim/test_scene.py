@@ -75,3 +75,14 @@ def test_set_state_rejects_a_bad_joint_vector() -> None:
     scene = SimScene(box())
     with pytest.raises(ValueError, match="16"):
         scene.set_state(np.zeros(12), np.eye(4))
+
+
+@pytest.mark.parametrize("name", ["plushie", "candle_holder"])
+def test_library_objects_load_and_step_without_warnings(name: str) -> None:
+    from neuralfeels_sem.objects.library import make_object
+    from neuralfeels_sem.sim.rig import SimRig
+
+    rig = SimRig(make_object(name, ["plastic", "metal", "fabric", "wood"]))
+    rig.state_at(0.0)
+    rig.scene.step(200)
+    assert rig.scene.warning_count == 0
