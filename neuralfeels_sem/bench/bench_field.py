@@ -4,7 +4,8 @@ One step = SemanticField forward (SDF + material branch) on 4096 points, an L1 S
 plus a cross-entropy material loss, backward, FieldAdam step. Measured for the CPU default
 (log2 table 19) and the paper's table (log2 24), with row-sparse and dense table
 gradients. Each configuration runs in a fresh process so its peak RSS (max resident set
-size minus the size after imports) is its own. On a CUDA machine the GPU rows are added,
+size minus the size after imports, during training; `..._with_query` also covers one
+65536-point no-grad SDF query, the marching-cubes chunk) is its own. On a CUDA machine the GPU rows are added,
 with torch's peak allocated memory.
 """
 
@@ -62,8 +63,10 @@ def _measure(log2_table_size: int, sparse: bool, device: str) -> dict:
         steps += 1
     elapsed = time.perf_counter() - start
     cpu = time.process_time() - cpu_start
+    # ru_maxrss is in KiB on Linux; read it before the large query below.
+    train_rss_mb = (resource.getrusage(resource.RUSAGE_SELF).ru_maxrss - rss0) / 1024
 
-    # Dense query throughput (marching cubes path): SDF only, no grad.
+    # Dense query throughput (marching cubes path): SDF only, no grad, 65536-point chunks.
     q = (torch.rand(65536, 3, device=device) * 2 - 1) * 0.1
     with torch.no_grad():
         field.sdf(q)
@@ -90,10 +93,9 @@ def _measure(log2_table_size: int, sparse: bool, device: str) -> dict:
     if device.startswith("cuda"):
         result["peak_gpu_mb"] = round(torch.cuda.max_memory_allocated() / 2**20, 1)
     else:
-        # ru_maxrss is in KiB on Linux.
-        result["peak_rss_delta_mb"] = round(
-            (resource.getrusage(resource.RUSAGE_SELF).ru_maxrss - rss0) / 1024, 1
-        )
+        result["peak_rss_delta_mb"] = round(train_rss_mb, 1)
+        query_rss_mb = (resource.getrusage(resource.RUSAGE_SELF).ru_maxrss - rss0) / 1024
+        result["peak_rss_delta_mb_with_query"] = round(query_rss_mb, 1)
     return result
 
 
