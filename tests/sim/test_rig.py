@@ -87,3 +87,14 @@ def test_unknown_finger_and_bad_firmness_are_value_errors() -> None:
         SimRig(obj, fingers=["pinky"])
     with pytest.raises(ValueError, match="press depth"):
         SimRig(obj, press_depth_m={"index": 0.004, "middle": 0.001, "ring": 0.001, "thumb": 0.001})
+
+
+def test_other_rotation_axis_turns_about_it_and_fingers_still_touch() -> None:
+    obj = two_material_sphere(0.04)
+    rig = SimRig(obj, axis=(1.0, 0.0, 0.0), wobble_deg=0.0)
+    states = [rig.state_at(i / 10) for i in range(30)]
+    rot = states[-1].world_T_object[:3, :3]
+    np.testing.assert_allclose(rot @ np.array([1.0, 0.0, 0.0]), [1.0, 0.0, 0.0], atol=1e-9)
+    angle = np.degrees(np.arccos(np.clip((np.trace(rot) - 1) / 2, -1, 1)))
+    assert angle == pytest.approx(30.0 * 2.9, abs=1e-6)
+    assert np.mean([sum(s.touching.values()) for s in states]) >= 2.0
