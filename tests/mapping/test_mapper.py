@@ -172,7 +172,7 @@ def test_field_fits_sphere_sdf_below_2mm() -> None:
 @pytest.mark.parametrize("concat", [True, False])
 def test_material_split_from_sparse_touches(concat: bool) -> None:
     mapper = make_mapper(concat=concat, steps_per_frame=15, warmup_steps=30)
-    for frame, labels in sphere_frames(16, touches_per_frame=4, camera=False, press=0.0005):
+    for frame, labels in sphere_frames(16, touches_per_frame=4, camera=False):
         mapper.add_frame(frame, labels)
     surface = sphere_surface(4000)
     predicted = mapper.field.predict_material(torch.tensor(surface, dtype=torch.float32)).numpy()
