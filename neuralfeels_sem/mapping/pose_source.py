@@ -11,6 +11,7 @@ a run in tracked mode is scored the way a user without ground truth would see it
 from __future__ import annotations
 
 import logging
+import time
 from pathlib import Path
 
 import numpy as np
@@ -112,6 +113,7 @@ class TrackedPose(PoseSource):
         self.curve: list[list[float]] = []  # [frame_index, time_s, error_mm]
         self.kept: dict[str, int] = {}  # why the prediction was kept, and how often
         self.tracked_frames = 0
+        self.track_seconds = 0.0  # wall time spent tracking (SDF evaluations dominate)
 
     # ---------------------------------------------------------------- tracking
     def _sdf_fn(self, mapper):
@@ -139,9 +141,11 @@ class TrackedPose(PoseSource):
                     source: torch.as_tensor(p)
                     for source, p in mapper.frame_points(frame, np.eye(4)).items()
                 }
+                start = time.perf_counter()
                 pose, info = self.tracker.track(
                     points, self._sdf_fn(mapper), predicted, prior=predicted
                 )
+                self.track_seconds += time.perf_counter() - start
                 if info["skipped"]:
                     self._keep(info["skipped"].split(" (")[0])
                 else:
@@ -166,6 +170,7 @@ class TrackedPose(PoseSource):
         out: dict = {
             "pose_frames_tracked": self.tracked_frames,
             "pose_frames_kept": dict(self.kept),
+            "pose_track_s_per_frame": self.track_seconds / max(self.tracked_frames, 1),
         }
         if self.curve:
             errors = np.array([row[2] for row in self.curve])
@@ -204,6 +209,7 @@ class TrackedPose(PoseSource):
             "curve": [list(row) for row in self.curve],
             "kept": dict(self.kept),
             "tracked_frames": self.tracked_frames,
+            "track_seconds": self.track_seconds,
         }
 
     def load_state(self, state: dict) -> None:
@@ -211,6 +217,7 @@ class TrackedPose(PoseSource):
         self.curve = [list(row) for row in state.get("curve", [])]
         self.kept = {str(k): int(v) for k, v in state.get("kept", {}).items()}
         self.tracked_frames = int(state.get("tracked_frames", 0))
+        self.track_seconds = float(state.get("track_seconds", 0.0))
         if self.history:
             self.last_estimate = self.history[-1]
 

@@ -232,7 +232,7 @@ class PoseTracker:
         if prior is not None:
             check_pose(prior, "prior")
         pts, weights = self._gather(points_world)
-        info: dict = {"points": len(pts), "iterations": 0, "skipped": None}
+        info: dict = {"points": len(pts), "iterations": 0, "evaluations": 0, "skipped": None}
         fallback = (prior if prior is not None else init_world_T_object).copy()
         if len(pts) < self.min_points:
             info["skipped"] = f"too few points ({len(pts)} < {self.min_points})"
@@ -268,6 +268,7 @@ class PoseTracker:
                 delta = -np.linalg.solve(lhs, b)
                 cand = se3_exp(delta) @ obj_T_world
                 q_c, r_c, g_c = self._linearise(sdf_fn, cand, pts)
+                info["evaluations"] += 1
                 err_c = prior_error(cand)
                 cost_c, w_c = self._cost(r_c, weights, err_c)
                 if cost_c <= cost:
