@@ -65,11 +65,21 @@ class HashGridEncoding(nn.Module):
         # Resolutions grow with the level, so the dense levels are a prefix.
         self.num_dense_levels = sum(dense)
         rows = [(r + 1) ** 3 if d else table_size for r, d in zip(resolutions, dense)]
-        offsets = [0]
-        for n in rows[:-1]:
-            offsets.append(offsets[-1] + n)
+        # Table layout: the hashed levels first, each at a multiple of the table size, so
+        # a level's offset can be OR-ed into the hash (fewer passes over the big index
+        # tensor); then the dense levels.
+        num_hashed = num_levels - self.num_dense_levels
+        offsets = [0] * num_levels
+        start = num_hashed * table_size
+        for level in range(num_levels):
+            if dense[level]:
+                offsets[level] = start
+                start += rows[level]
+            else:
+                offsets[level] = (level - self.num_dense_levels) * table_size
         self.resolutions = resolutions
         self.level_rows = rows
+        self.level_offsets = offsets
         self.register_buffer("_res", torch.tensor(resolutions, dtype=torch.long), persistent=False)
         self.register_buffer("_offsets", torch.tensor(offsets, dtype=torch.long), persistent=False)
         strides = torch.tensor([[1, r + 1, (r + 1) ** 2] for r in resolutions], dtype=torch.long)
@@ -120,21 +130,22 @@ class HashGridEncoding(nn.Module):
             wz[..., :, None, None] * wy[..., None, :, None] * wx[..., None, None, :]
         ).reshape(n, self.num_levels, 8)
         nd = self.num_dense_levels
-        parts = []
+        idx = torch.empty(n, self.num_levels, 8, dtype=torch.long, device=x.device)
         if nd > 0:
-            s = self._strides[:nd]  # (nd, 3)
-            base = (cell[:, :nd] * s).sum(-1)  # (N, nd)
-            parts.append(base[..., None] + self._dense_corner_offsets[None, :nd, :])
+            base = (cell[:, :nd] * self._strides[:nd]).sum(-1) + self._offsets[:nd]  # (N, nd)
+            torch.add(base[..., None], self._dense_corner_offsets[:nd], out=idx[:, :nd])
         if nd < self.num_levels:
             c = cell[:, nd:]
             step = torch.arange(2, device=x.device)
-            hx = (c[..., 0, None] + step) * HASH_PRIMES[0]  # (N, Lh, 2)
-            hy = (c[..., 1, None] + step) * HASH_PRIMES[1]
-            hz = (c[..., 2, None] + step) * HASH_PRIMES[2]
-            h = hz[..., :, None, None] ^ hy[..., None, :, None] ^ hx[..., None, None, :]
-            parts.append(h.reshape(n, -1, 8) & (2**self.log2_table_size - 1))
-        idx = torch.cat(parts, dim=1) if len(parts) > 1 else parts[0]
-        return idx + self._offsets[None, :, None], weights
+            mask = 2**self.log2_table_size - 1
+            # (a ^ b ^ c) & mask == (a & mask) ^ (b & mask) ^ (c & mask), and the aligned
+            # level offset sets only bits above the mask: apply both to the (N, Lh, 2) terms.
+            hx = ((c[..., 0, None] + step) * HASH_PRIMES[0]) & mask
+            hy = ((c[..., 1, None] + step) * HASH_PRIMES[1]) & mask
+            hz = ((c[..., 2, None] + step) * HASH_PRIMES[2]) & mask | self._offsets[nd:, None]
+            hyx = (hy[..., :, None] ^ hx[..., None, :]).reshape(n, -1, 1, 4)
+            torch.bitwise_xor(hz[..., :, None], hyx, out=idx[:, nd:].view(n, -1, 2, 4))
+        return idx, weights
 
     def forward(self, x: Tensor) -> Tensor:
         """Points (N, 3) in [0, 1]^3 (callers clamp) -> features (N, levels * features)."""

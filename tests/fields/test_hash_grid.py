@@ -29,6 +29,8 @@ def test_levels_resolutions_and_dense_prefix() -> None:
     assert enc.resolutions == [2, 4, 8]
     assert enc.num_dense_levels == 1
     assert enc.level_rows == [27, 64, 64]
+    # Hashed levels first at multiples of the table size, then the dense levels.
+    assert enc.level_offsets == [128, 0, 64]
     assert enc.table.shape == (27 + 64 + 64, 2)
     assert enc.out_dim == 6
     # The paper's defaults at the CPU table size: 16 levels up to resolution 2047, 5 dense.
@@ -46,7 +48,8 @@ def test_interpolation_at_grid_corners_returns_stored_features() -> None:
     x = ijk.to(torch.float64) / res
     out = enc(x)[:, :2]  # level 0 features
     dense_rows = ijk[:, 0] + ijk[:, 1] * (res + 1) + ijk[:, 2] * (res + 1) ** 2
-    torch.testing.assert_close(out, enc.table[dense_rows], rtol=0, atol=1e-12)
+    rows = dense_rows + enc.level_offsets[0]
+    torch.testing.assert_close(out, enc.table[rows], rtol=0, atol=1e-12)
 
 
 def test_hashed_level_corner_uses_the_instant_ngp_hash() -> None:
@@ -55,7 +58,7 @@ def test_hashed_level_corner_uses_the_instant_ngp_hash() -> None:
     ijk = torch.tensor([[3, 5, 7], [8, 0, 1], [0, 0, 0]])
     x = ijk.to(torch.float64) / res
     h = (ijk[:, 0] * HASH_PRIMES[0]) ^ (ijk[:, 1] * HASH_PRIMES[1]) ^ (ijk[:, 2] * HASH_PRIMES[2])
-    rows = (h % 64) + 27 + 64  # level 2 starts after level 0 (27 rows) and level 1 (64)
+    rows = (h % 64) + enc.level_offsets[level]
     torch.testing.assert_close(
         enc(x)[:, 2 * level : 2 * level + 2], enc.table[rows], rtol=0, atol=1e-12
     )
@@ -67,13 +70,14 @@ def test_midpoint_is_mean_of_the_cell_corners() -> None:
     lower = torch.tensor([1, 0, 1])
     x = ((lower + 0.5) / res).to(torch.float64)[None]
     corners = lower + torch.cartesian_prod(*[torch.arange(2)] * 3)
-    rows = corners[:, 0] + corners[:, 1] * 3 + corners[:, 2] * 9
+    rows = corners[:, 0] + corners[:, 1] * 3 + corners[:, 2] * 9 + enc.level_offsets[0]
     torch.testing.assert_close(enc(x)[0, :2], enc.table[rows].mean(0), rtol=0, atol=1e-12)
 
 
 def test_interpolation_is_linear_along_an_edge() -> None:
     enc = _tiny()
-    a, b = enc.table[0], enc.table[1]  # vertices (0,0,0) and (1,0,0) of level 0
+    start = enc.level_offsets[0]
+    a, b = enc.table[start], enc.table[start + 1]  # vertices (0,0,0) and (1,0,0) of level 0
     t = torch.tensor([0.0, 0.25, 0.7, 1.0], dtype=torch.float64)
     x = torch.stack([t / 2, torch.zeros_like(t), torch.zeros_like(t)], dim=-1)
     torch.testing.assert_close(
@@ -85,7 +89,9 @@ def test_upper_face_is_inside_the_grid() -> None:
     enc = _tiny()
     out = enc(torch.ones(1, 3, dtype=torch.float64))
     assert torch.isfinite(out).all()
-    torch.testing.assert_close(out[0, :2], enc.table[26], rtol=0, atol=1e-12)  # vertex (2,2,2)
+    torch.testing.assert_close(
+        out[0, :2], enc.table[enc.level_offsets[0] + 26], rtol=0, atol=1e-12
+    )  # vertex (2,2,2)
 
 
 def test_gradcheck_inputs_and_table() -> None:
@@ -155,3 +161,33 @@ def test_two_lookups_in_one_loss_accumulate_sparse_gradients() -> None:
         (enc(a).square().sum() + 3 * enc(b).sum()).backward()
         grads[sparse] = enc.table.grad.to_dense()
     torch.testing.assert_close(grads[True], grads[False], rtol=1e-5, atol=1e-6)
+
+
+def test_corner_indices_match_a_naive_reference() -> None:
+    enc = HashGridEncoding(num_levels=5, base_resolution=3, per_level_scale=1.7, log2_table_size=9)
+    assert 0 < enc.num_dense_levels < enc.num_levels  # both kinds of level are covered
+    x = torch.rand(40, 3, generator=torch.Generator().manual_seed(0))
+    idx, weights = enc.corner_indices(x)
+    mask = 2**enc.log2_table_size - 1
+    for level, res in enumerate(enc.resolutions):
+        cell = (x * res).floor().long().clamp(0, res - 1)
+        frac = x * res - cell
+        for k in range(8):
+            corner = cell + torch.tensor([k & 1, (k >> 1) & 1, (k >> 2) & 1])
+            if level < enc.num_dense_levels:
+                row = corner[:, 0] + corner[:, 1] * (res + 1) + corner[:, 2] * (res + 1) ** 2
+            else:
+                h = (
+                    corner[:, 0] * HASH_PRIMES[0]
+                    ^ corner[:, 1] * HASH_PRIMES[1]
+                    ^ corner[:, 2] * HASH_PRIMES[2]
+                )
+                row = h & mask
+            assert torch.equal(idx[:, level, k], row + enc.level_offsets[level]), (level, k)
+            w = torch.where(
+                torch.tensor([k & 1, (k >> 1) & 1, (k >> 2) & 1]).bool(), frac, 1 - frac
+            ).prod(-1)
+            torch.testing.assert_close(weights[:, level, k], w)
+    # Every level's rows stay inside its own block of the table.
+    for level, (start, rows) in enumerate(zip(enc.level_offsets, enc.level_rows)):
+        assert idx[:, level].min() >= start and idx[:, level].max() < start + rows
