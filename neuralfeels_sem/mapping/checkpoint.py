@@ -67,7 +67,8 @@ def load_checkpoint(
     if not path.is_file():
         raise DataError(f"checkpoint {path} does not exist; check mapping.resume")
     try:
-        payload = torch.load(path, map_location=mapper.device, weights_only=True)
+        # RNG states must stay on the CPU; load_state_dict moves tensors to the mapper's device.
+        payload = torch.load(path, map_location="cpu", weights_only=True)
     except Exception as exc:  # truncated or foreign file: say which file, not a pickle trace
         raise DataError(
             f"checkpoint {path} is unreadable ({type(exc).__name__}); point mapping.resume at a good checkpoint.pt"
