@@ -1,8 +1,8 @@
 """FieldAdam: Adam for dense gradients, lazy (row-sparse) Adam for sparse ones.
 
 The hash table has millions of rows of which one step touches a few hundred thousand.
-Dense Adam updates every row (and its two moment buffers) each step: about 3 s per step
-at the paper's 2^24 table on 2 CPU cores. With `HashGridEncoding(sparse_grad=True)` the
+Dense Adam updates every row (and its two moment buffers) each step: at the paper's 2^24
+table that is about 5 s of CPU per step on this project's 2-core machines (bench_field). With `HashGridEncoding(sparse_grad=True)` the
 table's gradient is a sparse COO tensor, and FieldAdam updates only the rows it holds, so
 a step costs O(points). Rows absent from a step keep their moments unchanged ("lazy
 Adam", as torch.optim.SparseAdam); bias correction uses the parameter's step count.
@@ -23,6 +23,8 @@ from torch import Tensor
 
 
 class FieldAdam(torch.optim.Optimizer):
+    """Adam (torch's update rule, L2 weight decay) that also takes row-sparse gradients."""
+
     def __init__(
         self,
         params: Iterable[Tensor] | Iterable[dict],

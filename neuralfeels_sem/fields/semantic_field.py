@@ -9,7 +9,7 @@ The SDF MLP predicts distance in normalised units and the field returns it in me
 
 from __future__ import annotations
 
-from collections.abc import Sequence
+from collections.abc import Callable, Sequence
 
 import torch
 from torch import Tensor, nn
@@ -122,8 +122,12 @@ class SemanticField(nn.Module):
 
 
 def evaluate_chunked(
-    fn, x: Tensor, chunk: int = 65536, no_grad: bool = True, progress: bool = False
-):
+    fn: Callable[[Tensor], Tensor | dict[str, Tensor]],
+    x: Tensor,
+    chunk: int = 65536,
+    no_grad: bool = True,
+    progress: bool = False,
+) -> Tensor | dict[str, Tensor]:
     """Apply `fn` to x (N, ...) in chunks of `chunk` rows and concatenate the results.
 
     `fn` returns a Tensor or a dict of Tensors (first dimension N). Used for dense queries
