@@ -44,7 +44,8 @@ class ContactGate:
         _check_pair(image, background)
         diff = image.astype(np.float32) - background.astype(np.float32)
         # A global exposure or LED drift shifts every pixel alike: remove it per channel.
-        diff -= np.median(diff.reshape(-1, 3), axis=0)
+        # (median of every 4th pixel in each direction: the same estimate at 1/16 of the cost)
+        diff -= np.median(diff[::4, ::4].reshape(-1, 3), axis=0)
         score = np.abs(diff).sum(axis=2)
         if self.blur_px > 0:
             score = cv2.GaussianBlur(score, (0, 0), self.blur_px)
