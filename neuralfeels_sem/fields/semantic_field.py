@@ -107,11 +107,12 @@ class SemanticField(nn.Module):
         """Most likely class index (N,) long."""
         return self.material_logits(x).argmax(dim=-1)
 
-    def sdf_gradient(self, x: Tensor, create_graph: bool = True) -> tuple[Tensor, Tensor]:
-        """(sdf (N,), d sdf / d x (N, 3)) by autograd, for the eikonal loss and pose tracking.
+    def sdf_and_gradient(self, x: Tensor, create_graph: bool = True) -> tuple[Tensor, Tensor]:
+        """(sdf (N,), d sdf / d x (N, 3)) by autograd from one forward pass.
 
-        With `create_graph` (default) the gradient is differentiable, so a loss on it trains
-        the field; pass False for a cheaper read-only gradient. Works under torch.no_grad.
+        With `create_graph` (default) the gradient is differentiable, so a loss on it (the
+        eikonal loss) trains the field; pass False for a cheaper read-only gradient (pose
+        tracking, normals). Works under torch.no_grad.
         """
         _check_points(x)
         with torch.enable_grad():
@@ -119,6 +120,10 @@ class SemanticField(nn.Module):
             sdf = self.sdf(x)
             (grad,) = torch.autograd.grad(sdf.sum(), x, create_graph=create_graph)
         return sdf, grad
+
+    def sdf_gradient(self, x: Tensor, create_graph: bool = True) -> Tensor:
+        """d sdf / d x (N, 3) in metres per metre; see `sdf_and_gradient`."""
+        return self.sdf_and_gradient(x, create_graph)[1]
 
 
 def evaluate_chunked(
