@@ -88,9 +88,8 @@ def test_empty_frames_train_nothing_and_optimize_needs_data() -> None:
 
 
 def test_pose_source() -> None:
-    assert resolve_pose_source("gt") == "gt"
-    with pytest.raises(ConfigError, match="not available yet"):
-        resolve_pose_source("track")
+    for pose in ("gt", "track", "track_known_shape"):  # tracking: mapping/pose_source.py
+        assert resolve_pose_source(pose) == pose
     with pytest.raises(ConfigError, match="unknown"):
         resolve_pose_source("vicon")
 
