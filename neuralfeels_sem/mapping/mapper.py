@@ -89,15 +89,16 @@ class OnlineMapper:
         seed: int = 0,
         device: str | torch.device = "cpu",
     ) -> None:
+        if num_classes < 2:
+            raise ValueError(f"num_classes={num_classes} must be >= 2")
         positive = {
-            "num_classes": num_classes - 1,  # at least two classes
             "camera_points_per_frame": camera_points_per_frame,
             "tactile_points_per_touch": tactile_points_per_touch,
             "truncation": truncation,
         }
         for name, value in positive.items():
             if value <= 0:
-                raise ValueError(f"{name} is out of range ({value})")
+                raise ValueError(f"{name}={value} must be > 0")
         counts = {
             "steps_per_frame": steps_per_frame,
             "warmup_steps": warmup_steps,

@@ -186,3 +186,10 @@ def test_eikonal_term_trains_through_the_sparse_hash_grid() -> None:
     assert losses["eikonal"] > 0
     assert losses["points"] == 128 * 6 + 64 * 6 + 256 + 64
     assert mapper.trained_on["optimizer_steps"] == 2
+
+
+@pytest.mark.parametrize("bad", [{"num_classes": 1}, {"truncation": 0.0}, {"steps_per_frame": -1}])
+def test_bad_arguments_raise_value_error(bad: dict) -> None:
+    args = {"num_classes": 2, **bad}
+    with pytest.raises(ValueError, match=next(iter(bad))):
+        OnlineMapper(small_field(log2_table_size=10), functools.partial(FieldAdam, lr=1e-3), **args)
