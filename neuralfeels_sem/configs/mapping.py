@@ -143,15 +143,52 @@ class MapperConfig:
 
 
 @dataclass
-class MappingConfig:
-    pose: str = (
-        "gt"  # gt: the frame's pose | track, track_known_shape: pose tracking (not yet available)
+class TrackerConfig:
+    """Arguments of neuralfeels_sem.mapping.pose_tracker.PoseTracker (mapping.pose=track*)."""
+
+    _target_: str = "neuralfeels_sem.mapping.pose_tracker.PoseTracker"
+    iterations: int = 15  # Levenberg-Marquardt iterations per frame
+    robust_loss: str = "cauchy"  # huber | cauchy
+    robust_scale: float = 0.002  # metres where the robust loss stops being quadratic
+    min_points: int = 50  # fewer points: keep the predicted pose
+    damping: float = 1.0e-3  # initial LM damping
+    prior_weight: float = 0.01  # pull toward the constant-velocity prediction
+    rotation_scale: float = 0.05  # metres per radian in the prior (about the object radius)
+    max_points_per_source: int = 1000  # camera, and each finger
+    source_weights: dict[str, float] = field(
+        default_factory=lambda: {"camera": 1.0, "tactile": 1.0}
     )
+    seed: int = 0
+
+    def __post_init__(self) -> None:
+        if self.iterations < 1 or self.min_points < 6 or self.max_points_per_source < 1:
+            raise ValueError(
+                f"mapping.tracker needs iterations >= 1 ({self.iterations}), min_points >= 6 "
+                f"({self.min_points}) and max_points_per_source >= 1 ({self.max_points_per_source})"
+            )
+        if self.robust_loss not in ("huber", "cauchy"):
+            raise ValueError(
+                f"mapping.tracker.robust_loss={self.robust_loss} must be huber or cauchy"
+            )
+        if min(self.robust_scale, self.damping, self.rotation_scale) <= 0 or self.prior_weight < 0:
+            raise ValueError(
+                "mapping.tracker robust_scale, damping and rotation_scale must be > 0, prior_weight >= 0"
+            )
+        if any(w < 0 for w in self.source_weights.values()):
+            raise ValueError(
+                f"mapping.tracker.source_weights={dict(self.source_weights)} must be >= 0"
+            )
+
+
+@dataclass
+class MappingConfig:
+    pose: str = "gt"  # gt: the frame's pose | track: SLAM | track_known_shape: against the GT mesh
     checkpoint_every: int = 25  # frames between checkpoint.pt writes (0: only at the end)
     resume: str | None = None  # a checkpoint.pt to continue a killed run from
     mesh_resolution: int = 128  # marching-cubes grid per axis over the model's bound
     optimizer: OptimizerConfig = field(default_factory=OptimizerConfig)
     mapper: MapperConfig = field(default_factory=MapperConfig)
+    tracker: TrackerConfig = field(default_factory=TrackerConfig)
 
     def __post_init__(self) -> None:
         if self.pose not in POSE_SOURCES:

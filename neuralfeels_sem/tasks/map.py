@@ -85,7 +85,8 @@ def map_object(cfg: DictConfig, obj, sensor, out: Path) -> dict:
     bound = BOUND_MARGIN * obj.bounds_radius
     mapper = build_mapper(cfg, bound, device)
     scorer = build_scorer(cfg, obj)
-    pose_source = build_pose_source(cfg.mapping.pose, obj)
+    tracker = instantiate(cfg.mapping.tracker) if "tracker" in cfg.mapping else None
+    pose_source = build_pose_source(cfg.mapping.pose, obj, tracker)
     snapshots_dir = out / "progression"
     snapshots_dir.mkdir(exist_ok=True)
 

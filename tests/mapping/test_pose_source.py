@@ -181,3 +181,17 @@ def test_bad_construction(obj) -> None:
         TrackedPose("gt", obj)
     with pytest.raises(ValueError):
         TrackedPose("track_known_shape", None)
+
+
+def test_tracker_config_builds_the_tracker() -> None:
+    from hydra.utils import instantiate
+
+    from neuralfeels_sem.configs.mapping import TrackerConfig
+    from tests.helpers import compose_config
+
+    cfg = compose_config(["mapping.pose=track", "mapping.tracker.source_weights.camera=0"])
+    tracker = instantiate(cfg.mapping.tracker)
+    assert isinstance(tracker, PoseTracker)
+    assert tracker.source_weight("camera") == 0.0 and tracker.source_weight("thumb") == 1.0
+    with pytest.raises(ValueError, match="robust_loss"):
+        TrackerConfig(robust_loss="l1")

@@ -3,6 +3,7 @@ sphere-and-box shape, the ground-truth-mesh grid SDF, and an end-to-end tracked 
 
 from __future__ import annotations
 
+import json
 import logging
 
 import numpy as np
@@ -19,6 +20,7 @@ from neuralfeels_sem.mapping.pose_tracker import (
     se3_log,
 )
 from neuralfeels_sem.utils.geometry import invert_pose, transform_points
+from tests.helpers import run_cli
 
 SPHERE_R = 0.03
 BOX_CENTRE = torch.tensor([0.03, 0.0, 0.01], dtype=torch.float64)
@@ -222,3 +224,34 @@ def test_grid_sdf_is_cached_in_memory() -> None:
     assert a is b
     with pytest.raises(ValueError):
         GridSdf(np.zeros((4, 4)), np.zeros(3), 0.01)
+
+
+# ------------------------------------------------------------------ end to end
+@pytest.mark.slow
+def test_cli_run_with_known_shape_tracking_reports_the_pose_error(tmp_path) -> None:
+    """A short simulated run: metrics.json carries the pose error, pose_error.png exists."""
+    result = run_cli(
+        [
+            "object=patched_toy",
+            "classifier=oracle",
+            "mapping.pose=track_known_shape",
+            "sensor.duration_s=0.5",
+            "mapping.mapper.warmup_steps=10",
+            "eval.every_k_frames=10",
+            "eval.num_surface_samples=2000",
+            "eval.image_views=1",
+            "eval.image_size=48",
+            "eval.shape_samples=2000",
+            "eval.mesh_resolution=48",
+            "viz.progression_snapshots=1",
+            f"hydra.run.dir={tmp_path}",
+        ],
+        timeout=1800,
+    )
+    assert result.returncode == 0, result.stderr[-3000:]
+    metrics = json.loads((tmp_path / "metrics.json").read_text())
+    assert metrics["pose_source"] == "track_known_shape"
+    assert metrics["pose_frames_tracked"] == metrics["frames"] - 1
+    assert len(metrics["pose_error_curve"]) == metrics["frames"]
+    assert 0.0 <= metrics["pose_error_mm"] < 2.3
+    assert (tmp_path / "pose_error.png").stat().st_size > 0
