@@ -40,6 +40,15 @@ def register_configs() -> None:
 def validate_config(cfg: DictConfig) -> None:
     """Run every schema's range checks; raise ConfigError with one line on failure."""
     try:
+        # Top-level keys first: groups copy them by interpolation (e.g. eval.seed: ${seed}),
+        # and the error should name the key the user set.
+        from neuralfeels_sem.configs.root import RootConfig
+
+        RootConfig(
+            seed=cfg.get("seed", 0),
+            materials=list(cfg.get("materials", [])),
+            device=cfg.get("device", "auto"),
+        )
         OmegaConf.to_object(cfg)
     except (ValueError, OmegaConfBaseException) as exc:
         msg = str(exc).strip().splitlines()[0]
