@@ -25,6 +25,9 @@ class EfficientNetClassifierConfig:
         None  # local ImageNet B0 state dict for training (efficientnet-pytorch layout)
     )
     input_size: int = 224  # training input side in pixels
+    # Training only: crop this many native pixels around the contact before resizing
+    # (null = the paper's whole-frame resize). A checkpoint records its own crop.
+    crop_px: int | None = None
 
     def __post_init__(self) -> None:
         if not 0.0 <= self.min_confidence <= 1.0:
@@ -39,6 +42,8 @@ class EfficientNetClassifierConfig:
             raise ValueError(f"classifier.contact_blur_px={self.contact_blur_px} must be >= 0")
         if self.input_size < 32:
             raise ValueError(f"classifier.input_size={self.input_size} must be >= 32")
+        if self.crop_px is not None and not 32 <= self.crop_px <= 240:
+            raise ValueError(f"classifier.crop_px={self.crop_px} must be null or in 32..240")
 
 
 @dataclass

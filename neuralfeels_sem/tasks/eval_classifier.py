@@ -17,7 +17,12 @@ from omegaconf import DictConfig
 
 from neuralfeels_sem.errors import ConfigError
 from neuralfeels_sem.perception.classifier import MaterialClassifier
-from neuralfeels_sem.perception.classifier.dataset import load_samples, resolve_path, scan_dataset
+from neuralfeels_sem.perception.classifier.dataset import (
+    load_backgrounds,
+    load_samples,
+    resolve_path,
+    scan_dataset,
+)
 from neuralfeels_sem.perception.classifier.evaluate import (
     predict_in_batches,
     test_report,
@@ -42,7 +47,13 @@ def run(cfg: DictConfig) -> dict:
         require_all_classes=False,
         extensions=tuple(data.extensions),
     )
-    loaded = load_samples(samples, ckpt.input_size)
+    crop_px = ckpt.meta.get("crop_px")
+    loaded = load_samples(
+        samples,
+        ckpt.input_size,
+        crop_px=crop_px,
+        backgrounds=load_backgrounds(data.root) if crop_px else None,
+    )
     pred = predict_in_batches(classifier.predict_images, loaded.images, int(cfg.task.batch_size))
     report = test_report(loaded.labels, pred, loaded.sensors, classifier.class_names)
     report["val_accuracy"] = ckpt.meta.get("val_accuracy")

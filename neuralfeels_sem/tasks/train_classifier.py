@@ -27,6 +27,7 @@ from neuralfeels_sem.perception.classifier.checkpoint import load_checkpoint, sa
 from neuralfeels_sem.perception.classifier.dataset import (
     Sample,
     class_counts,
+    load_backgrounds,
     load_samples,
     resolve_path,
     scan_dataset,
@@ -92,7 +93,10 @@ def run(cfg: DictConfig) -> dict:
         data.root, class_names, require_all_classes=True, extensions=tuple(data.extensions)
     )
     samples = cap_per_group(samples, data.max_per_group, seed)
-    loaded = load_samples(samples, size)
+    crop_px = classifier.crop_px
+    loaded = load_samples(
+        samples, size, crop_px=crop_px, backgrounds=load_backgrounds(data.root) if crop_px else None
+    )
     parts = stratified_split(loaded.labels, loaded.sensors, tuple(task.split), seed)
     for name in ("train", "val", "test"):
         if len(parts[name]) == 0:
@@ -173,6 +177,7 @@ def run(cfg: DictConfig) -> dict:
     report["training"] = {
         **asdict(settings),
         "input_size": size,
+        "crop_px": crop_px,
         "device": str(device),
         "weights": classifier.weights,
         "best_epoch": result.best_epoch,
@@ -181,6 +186,7 @@ def run(cfg: DictConfig) -> dict:
         "resumed_from_epoch": result.resumed_from_epoch,
     }
     meta = {
+        "crop_px": crop_px,
         "val_accuracy": report["val_accuracy"],
         "test_accuracy": report["test_accuracy"],
         "per_sensor": report["per_sensor"],

@@ -19,7 +19,7 @@ import numpy as np
 from tqdm import tqdm
 
 from neuralfeels_sem.errors import DataError
-from neuralfeels_sem.perception.classifier.transforms import resize_image
+from neuralfeels_sem.perception.classifier.transforms import preprocess
 from neuralfeels_sem.sensors.frame import DIGIT_HEIGHT, DIGIT_WIDTH
 from neuralfeels_sem.utils.paths import REPO_DIR
 
@@ -106,8 +106,25 @@ def scan_dataset(
     return samples
 
 
-def load_samples(samples: list[Sample], size: int, desc: str = "loading images") -> LoadedSet:
-    """Read, resize and stack images; skip (and count) unreadable ones."""
+def load_backgrounds(root: str | Path) -> dict[str, np.ndarray]:
+    """`<root>/_backgrounds/<sensor>.png` no-contact frames (RGB), when the data set has them."""
+    folder = resolve_path(root) / "_backgrounds"
+    out = {}
+    for path in sorted(folder.glob("*.png")) if folder.is_dir() else []:
+        bgr = cv2.imread(str(path), cv2.IMREAD_COLOR)
+        if bgr is not None:
+            out[path.stem] = np.ascontiguousarray(bgr[..., ::-1])
+    return out
+
+
+def load_samples(
+    samples: list[Sample],
+    size: int,
+    desc: str = "loading images",
+    crop_px: int | None = None,
+    backgrounds: dict[str, np.ndarray] | None = None,
+) -> LoadedSet:
+    """Read, preprocess (optional contact crop, resize) and stack images; skip (and count) unreadable ones."""
     images, labels, sensors, paths, skipped = [], [], [], [], []
     wrong_size = 0
     for sample in tqdm(samples, desc=desc, unit="img", leave=False):
@@ -117,7 +134,8 @@ def load_samples(samples: list[Sample], size: int, desc: str = "loading images")
             continue
         if bgr.shape[:2] != (DIGIT_HEIGHT, DIGIT_WIDTH):
             wrong_size += 1
-        images.append(resize_image(np.ascontiguousarray(bgr[..., ::-1]), size))
+        background = (backgrounds or {}).get(sample.sensor)
+        images.append(preprocess(bgr[..., ::-1], size, crop_px, background))
         labels.append(sample.label)
         sensors.append(sample.sensor)
         paths.append(str(sample.path))

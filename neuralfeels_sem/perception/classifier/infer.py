@@ -23,7 +23,7 @@ from neuralfeels_sem.errors import ConfigError, DataError
 from neuralfeels_sem.perception.classifier.checkpoint import ClassifierCheckpoint, load_checkpoint
 from neuralfeels_sem.perception.classifier.model import build_model
 from neuralfeels_sem.perception.classifier.predict import predict_probs
-from neuralfeels_sem.perception.classifier.transforms import resize_batch
+from neuralfeels_sem.perception.classifier.transforms import preprocess, resize_batch
 from neuralfeels_sem.perception.contact import ContactGate
 from neuralfeels_sem.perception.touch import NO_LABEL, TouchLabel
 from neuralfeels_sem.sensors.frame import TactileReading
@@ -45,8 +45,8 @@ class MaterialClassifier:
     background_dir: folder of `<finger>.png` no-contact frames (e.g. `<data>/_backgrounds`).
     first_frame_background: without any background, take a finger's first frame as its
         background (a real DIGIT is usually started free of contact).
-    weights, input_size: how `task=train_classifier` builds a new model (`new_model()`);
-        a loaded checkpoint carries its own input size.
+    weights, input_size, crop_px: how `task=train_classifier` builds a new model
+        (`new_model()`) and its inputs; a loaded checkpoint carries its own input size and crop.
     """
 
     def __init__(
@@ -62,6 +62,7 @@ class MaterialClassifier:
         first_frame_background: bool = True,
         weights: str | None = None,
         input_size: int = 224,
+        crop_px: int | None = None,
     ) -> None:
         if not 0.0 <= min_confidence <= 1.0:
             raise ValueError(f"min_confidence={min_confidence} must be in [0, 1]")
@@ -74,6 +75,7 @@ class MaterialClassifier:
         self.first_frame_background = first_frame_background
         self.weights = weights
         self.input_size = int(input_size)
+        self.crop_px = crop_px
         self._backgrounds: dict[str, np.ndarray] = {}
         self._model: torch.nn.Module | None = None
         self._ckpt: ClassifierCheckpoint | None = None
@@ -147,8 +149,15 @@ class MaterialClassifier:
         self._backgrounds[finger] = np.asarray(image)
 
     # ---- inference -----------------------------------------------------------------
-    def predict_images(self, images: np.ndarray) -> np.ndarray:
-        """(B, H, W, 3) uint8 tactile images (any size, e.g. 320x240) -> (B, C) probabilities."""
+    def predict_images(
+        self, images: np.ndarray, backgrounds: Sequence[np.ndarray | None] | None = None
+    ) -> np.ndarray:
+        """(B, H, W, 3) uint8 tactile images -> (B, C) probabilities.
+
+        Raw frames (larger than the checkpoint's crop) are cropped around their contact
+        (against `backgrounds`, one per image) when the model was trained on crops;
+        images already at the input size are used as they are.
+        """
         self.open()
         images = np.asarray(images)
         if images.ndim != 4 or images.shape[-1] != 3 or images.dtype != np.uint8:
@@ -158,7 +167,17 @@ class MaterialClassifier:
         if len(images) == 0:
             return np.zeros((0, len(self.class_names)), dtype=np.float32)
         ckpt = self._ckpt
-        batch = resize_batch(images, ckpt.input_size)
+        crop_px = ckpt.meta.get("crop_px")
+        if crop_px and min(images.shape[1:3]) > crop_px:
+            backgrounds = backgrounds if backgrounds is not None else [None] * len(images)
+            batch = np.stack(
+                [
+                    preprocess(im, ckpt.input_size, crop_px, bg)
+                    for im, bg in zip(images, backgrounds)
+                ]
+            )
+        else:
+            batch = resize_batch(images, ckpt.input_size)
         return predict_probs(self._model, batch, ckpt.mean, ckpt.std, self._device)
 
     def background_for(self, reading: TactileReading) -> np.ndarray | None:
@@ -188,7 +207,10 @@ class MaterialClassifier:
         labels = [TouchLabel(finger=r.finger, contact=c) for r, c in zip(readings, contact)]
         touched = [i for i, c in enumerate(contact) if c]
         if touched:
-            probs = self.predict_images(np.stack([readings[i].image for i in touched]))
+            probs = self.predict_images(
+                np.stack([readings[i].image for i in touched]),
+                [self.background_for(readings[i]) for i in touched],
+            )
             for i, p in zip(touched, probs):
                 top = int(p.argmax())
                 labels[i].probs = p

@@ -29,6 +29,39 @@ def resize_image(image: np.ndarray, size: int) -> np.ndarray:
     return cv2.resize(image, (size, size), interpolation=cv2.INTER_AREA)
 
 
+def contact_crop(
+    image: np.ndarray, background: np.ndarray | None, crop_px: int, threshold: float = 20.0
+) -> np.ndarray:
+    """Square `crop_px` window around the contact, at the sensor's native resolution.
+
+    Centred on the centroid of the (blurred) difference to the no-contact background; the
+    frame centre without a background or contact. Squashing a whole 320x240 frame into a
+    small input averages the micro-texture away; a crop keeps it.
+    """
+    h, w = image.shape[:2]
+    crop = min(int(crop_px), h, w)
+    cy, cx = h / 2.0, w / 2.0
+    if background is not None and background.shape == image.shape:
+        diff = np.abs(image.astype(np.int16) - background.astype(np.int16)).sum(axis=-1)
+        weight = np.clip(cv2.blur(diff.astype(np.float32), (9, 9)) - threshold, 0.0, None)
+        total = float(weight.sum())
+        if total > 0:
+            cy = float(weight.sum(axis=1) @ np.arange(h)) / total
+            cx = float(weight.sum(axis=0) @ np.arange(w)) / total
+    y0 = int(np.clip(round(cy - crop / 2.0), 0, h - crop))
+    x0 = int(np.clip(round(cx - crop / 2.0), 0, w - crop))
+    return image[y0 : y0 + crop, x0 : x0 + crop]
+
+
+def preprocess(
+    image: np.ndarray, size: int, crop_px: int | None = None, background: np.ndarray | None = None
+) -> np.ndarray:
+    """The model's input pixels: optional contact crop, then resize to size x size."""
+    if crop_px:
+        image = contact_crop(image, background, crop_px)
+    return resize_image(np.ascontiguousarray(image), size)
+
+
 def resize_batch(images: np.ndarray | Sequence[np.ndarray], size: int) -> np.ndarray:
     """(B, H, W, 3) uint8 (or a list of images) -> (B, size, size, 3) uint8."""
     return np.stack([resize_image(np.asarray(im), size) for im in images])
