@@ -149,7 +149,7 @@ class TrackerConfig:
     _target_: str = "neuralfeels_sem.mapping.pose_tracker.PoseTracker"
     iterations: int = 15  # Levenberg-Marquardt iterations per frame
     robust_loss: str = "cauchy"  # huber | cauchy
-    robust_scale: float = 0.002  # metres where the robust loss stops being quadratic
+    robust_scale: float = 0.001  # metres where the robust loss stops being quadratic
     min_points: int = 50  # fewer points: keep the predicted pose
     damping: float = 1.0e-3  # initial LM damping
     prior_weight: float = 0.01  # pull toward the constant-velocity prediction

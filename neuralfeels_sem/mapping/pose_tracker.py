@@ -104,7 +104,7 @@ class PoseTracker:
         self,
         iterations: int = 15,
         robust_loss: str = "cauchy",
-        robust_scale: float = 0.002,
+        robust_scale: float = 0.001,
         min_points: int = 50,
         damping: float = 1e-3,
         prior_weight: float = 0.01,
