@@ -4,6 +4,7 @@ from __future__ import annotations
 
 from dataclasses import dataclass, field
 
+from neuralfeels_sem.configs.object import SHIPPED_OBJECTS
 from neuralfeels_sem.sensors.frame import FINGERS
 from neuralfeels_sem.sim.digit_geometry import MAX_PENETRATION_M
 
@@ -101,17 +102,7 @@ class CollectTactileTaskConfig:
     samples_per_class_per_sensor: int = 300
     sensors: list[str] = field(default_factory=lambda: list(FINGERS))
     # Shipped objects whose regions add real-shaped touches of their materials (besides primitives).
-    library_objects: list[str] = field(
-        default_factory=lambda: [
-            "plushie",
-            "patched_toy",
-            "fabric_toy",
-            "yarn_ball",
-            "candle_holder",
-            "powder_shaker",
-            "plastic_toy",
-        ]
-    )
+    library_objects: list[str] = field(default_factory=lambda: list(SHIPPED_OBJECTS))
     firmness_mm: dict[str, float] = field(
         default_factory=lambda: {"index": 1.5, "middle": 1.5, "ring": 1.5, "thumb": 0.7}
     )
