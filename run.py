@@ -1,8 +1,8 @@
 """SemanticFeels entry point: compose the config tree, then run the chosen task.
 
-    python run.py sensor=sim object=plushie          # default task: map
-    python run.py task=train_classifier dataset.root=PATH
-    python run.py -m experiment=multi_material launcher=joblib
+python run.py sensor=sim object=plushie          # default task: map
+python run.py task=train_classifier dataset.root=PATH
+python run.py -m experiment=multi_material launcher=joblib
 """
 
 import hydra

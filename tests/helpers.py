@@ -16,13 +16,17 @@ from neuralfeels_sem.utils.paths import REPO_DIR
 CONF_DIR = REPO_DIR / "conf"
 
 
-def compose_config(overrides: list[str] | None = None, return_hydra_config: bool = False) -> DictConfig:
+def compose_config(
+    overrides: list[str] | None = None, return_hydra_config: bool = False
+) -> DictConfig:
     register_configs()
     with initialize_config_dir(config_dir=str(CONF_DIR), version_base="1.3"):
         return compose("config", overrides=overrides or [], return_hydra_config=return_hydra_config)
 
 
-def run_cli(args: list[str], cwd: Path | None = None, timeout: float = 600) -> subprocess.CompletedProcess:
+def run_cli(
+    args: list[str], cwd: Path | None = None, timeout: float = 600
+) -> subprocess.CompletedProcess:
     """Run `python run.py ARGS` in a subprocess, as a user would."""
     env = dict(os.environ, HYDRA_FULL_ERROR="0", PYTHONUNBUFFERED="1")
     return subprocess.run(

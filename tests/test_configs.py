@@ -13,7 +13,19 @@ from neuralfeels_sem.configs import validate_config
 from neuralfeels_sem.errors import ConfigError
 from tests.helpers import CONF_DIR, compose_config, run_cli
 
-GROUPS = ("sensor", "object", "model", "classifier", "mapping", "eval", "viz", "dataset", "task", "launcher", "experiment")
+GROUPS = (
+    "sensor",
+    "object",
+    "model",
+    "classifier",
+    "mapping",
+    "eval",
+    "viz",
+    "dataset",
+    "task",
+    "launcher",
+    "experiment",
+)
 # Options whose plugin is an optional extra.
 OPTIONAL = {("launcher", "ray"): "hydra_plugins.hydra_ray_launcher"}
 

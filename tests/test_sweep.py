@@ -15,10 +15,14 @@ TINY_JOB = ["task=info"]
 @pytest.mark.parametrize("launcher", ["local", "submitit_local"])
 def test_multirun_two_jobs_and_aggregate(tmp_path: Path, launcher: str) -> None:
     sweep_dir = tmp_path / "sweep"
-    result = run_cli(["-m", *TINY_JOB, "seed=0,1", f"launcher={launcher}", f"hydra.sweep.dir={sweep_dir}"])
+    result = run_cli(
+        ["-m", *TINY_JOB, "seed=0,1", f"launcher={launcher}", f"hydra.sweep.dir={sweep_dir}"]
+    )
     assert result.returncode == 0, result.stderr[-3000:]
     for job in ("0", "1"):
-        assert (sweep_dir / job / "info.json").exists(), sorted(p.name for p in (sweep_dir / job).iterdir())
+        assert (sweep_dir / job / "info.json").exists(), sorted(
+            p.name for p in (sweep_dir / job).iterdir()
+        )
         assert (sweep_dir / job / ".hydra" / "config.yaml").exists()
     summary = json.loads((sweep_dir / "summary.json").read_text())
     assert [j["status"] for j in summary["jobs"]] == ["ok", "ok"]

@@ -17,7 +17,9 @@ from neuralfeels_sem.tasks.info import collect_info
 
 
 def discover(only: list[str] | None) -> list[str]:
-    names = sorted(m.name for m in pkgutil.iter_modules(bench_pkg.__path__) if m.name.startswith("bench_"))
+    names = sorted(
+        m.name for m in pkgutil.iter_modules(bench_pkg.__path__) if m.name.startswith("bench_")
+    )
     if only:
         names = [n for n in names if any(o in n for o in only)]
     return names
@@ -29,7 +31,11 @@ def main(argv: list[str] | None = None) -> int:
     parser.add_argument("--only", nargs="*", help="substrings of benchmark names to run")
     args = parser.parse_args(argv)
     logging.basicConfig(level=logging.INFO, format="%(message)s")
-    report = {"machine": collect_info(), "started": time.strftime("%Y-%m-%dT%H:%M:%S"), "results": {}}
+    report = {
+        "machine": collect_info(),
+        "started": time.strftime("%Y-%m-%dT%H:%M:%S"),
+        "results": {},
+    }
     failed = 0
     for name in discover(args.only):
         print(f"[bench] {name} ...", flush=True)

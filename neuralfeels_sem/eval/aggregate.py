@@ -71,7 +71,12 @@ def read_job(job_dir: Path) -> dict | None:
 
 def group_jobs(jobs: list[dict]) -> list[dict]:
     varying = sorted(
-        {k for j in jobs for k in j["overrides"] if len({str(x["overrides"].get(k)) for x in jobs}) > 1}
+        {
+            k
+            for j in jobs
+            for k in j["overrides"]
+            if len({str(x["overrides"].get(k)) for x in jobs}) > 1
+        }
         - set(TRIAL_KEYS)
     )
     buckets: dict[tuple, list[dict]] = defaultdict(list)
@@ -85,14 +90,26 @@ def group_jobs(jobs: list[dict]) -> list[dict]:
         for name in names:
             values = [j["metrics"][name] for j in members if name in j["metrics"]]
             mean = sum(values) / len(values)
-            var = sum((v - mean) ** 2 for v in values) / (len(values) - 1) if len(values) > 1 else 0.0
+            var = (
+                sum((v - mean) ** 2 for v in values) / (len(values) - 1) if len(values) > 1 else 0.0
+            )
             stats[name] = {"mean": mean, "std": math.sqrt(var), "n": len(values)}
-        groups.append({"group": dict(zip(varying, key)), "jobs": [j["job"] for j in members], "metrics": stats})
+        groups.append(
+            {
+                "group": dict(zip(varying, key)),
+                "jobs": [j["job"] for j in members],
+                "metrics": stats,
+            }
+        )
     return groups
 
 
 def summarize(sweep_dir: Path) -> dict:
-    jobs = [j for d in sorted(sweep_dir.iterdir(), key=lambda p: p.name) if d.is_dir() and (j := read_job(d))]
+    jobs = [
+        j
+        for d in sorted(sweep_dir.iterdir(), key=lambda p: p.name)
+        if d.is_dir() and (j := read_job(d))
+    ]
     summary = {
         "sweep_dir": str(sweep_dir),
         "jobs": jobs,
@@ -109,8 +126,21 @@ def write_csv(summary: dict, path: Path) -> None:
     rows = []
     for group in summary["groups"]:
         for metric, s in group["metrics"].items():
-            rows.append({**group["group"], "metric": metric, "mean": s["mean"], "std": s["std"], "n": s["n"]})
-    keys = sorted({k for g in summary["groups"] for k in g["group"]}) + ["metric", "mean", "std", "n"]
+            rows.append(
+                {
+                    **group["group"],
+                    "metric": metric,
+                    "mean": s["mean"],
+                    "std": s["std"],
+                    "n": s["n"],
+                }
+            )
+    keys = sorted({k for g in summary["groups"] for k in g["group"]}) + [
+        "metric",
+        "mean",
+        "std",
+        "n",
+    ]
     with path.open("w", newline="") as f:
         writer = csv.DictWriter(f, fieldnames=keys)
         writer.writeheader()
@@ -123,7 +153,10 @@ def plot_summary(summary: dict, path: Path) -> None:
     if not groups:
         return
     available = {m for g in groups for m in g["metrics"]}
-    metric = next((m for m in HEADLINE_METRICS if m in available), None) or (sorted(available) or [None])[0]
+    metric = (
+        next((m for m in HEADLINE_METRICS if m in available), None)
+        or (sorted(available) or [None])[0]
+    )
     if metric is None:
         return
     import matplotlib
@@ -152,9 +185,16 @@ class SweepAggregator(Callback):
         if not sweep_dir.is_dir():
             return
         summary = summarize(sweep_dir)
-        log.info("sweep summary: %s (%d groups)", sweep_dir / "summary.json", len(summary["groups"]))
+        log.info(
+            "sweep summary: %s (%d groups)", sweep_dir / "summary.json", len(summary["groups"])
+        )
         if summary["failed"]:
-            log.error("%d of %d jobs failed: %s", len(summary["failed"]), len(summary["jobs"]), summary["failed"])
+            log.error(
+                "%d of %d jobs failed: %s",
+                len(summary["failed"]),
+                len(summary["jobs"]),
+                summary["failed"],
+            )
         try:
             from neuralfeels_sem.viz.sweep_plots import plot_experiment
         except ImportError:

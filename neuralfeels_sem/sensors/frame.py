@@ -27,10 +27,14 @@ class TactileReading:
     # Pose of the DIGIT's internal camera (OpenCV, +z looks through the gel toward the object).
     world_T_sensor: np.ndarray
     intrinsics: Intrinsics  # of the DIGIT's internal camera
-    background: np.ndarray | None = None  # the no-contact frame of this sensor, for the contact gate
+    background: np.ndarray | None = (
+        None  # the no-contact frame of this sensor, for the contact gate
+    )
     # Sim ground truth (None on hardware):
     gt_contact_mask: np.ndarray | None = None  # (320, 240) bool
-    gt_depth: np.ndarray | None = None  # (320, 240) float32, metres along +z of the sensor camera, 0 off-contact
+    gt_depth: np.ndarray | None = (
+        None  # (320, 240) float32, metres along +z of the sensor camera, 0 off-contact
+    )
     gt_material: np.ndarray | None = None  # (320, 240) int16 class index, -1 = no contact / ignore
 
     def __post_init__(self) -> None:
@@ -59,7 +63,9 @@ class CameraReading:
     def __post_init__(self) -> None:
         h, w = self.depth.shape[:2]
         if self.rgb.shape[:2] != (h, w):
-            raise ValueError(f"camera rgb {self.rgb.shape} and depth {self.depth.shape} differ in size")
+            raise ValueError(
+                f"camera rgb {self.rgb.shape} and depth {self.depth.shape} differ in size"
+            )
         if (h, w) != (self.intrinsics.height, self.intrinsics.width):
             raise ValueError(f"camera image {w}x{h} does not match its intrinsics")
         check_pose(self.world_T_camera, "world_T_camera")

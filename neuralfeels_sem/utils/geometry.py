@@ -10,6 +10,7 @@ boundary with `opengl_T_opencv`, and nowhere else.
 
 from __future__ import annotations
 
+from collections.abc import Sequence
 from dataclasses import dataclass
 
 import numpy as np
@@ -32,7 +33,9 @@ class Intrinsics:
     @classmethod
     def from_fov(cls, width: int, height: int, fov_y_deg: float) -> Intrinsics:
         fy = 0.5 * height / np.tan(np.deg2rad(fov_y_deg) / 2.0)
-        return cls(fx=fy, fy=fy, cx=(width - 1) / 2.0, cy=(height - 1) / 2.0, width=width, height=height)
+        return cls(
+            fx=fy, fy=fy, cx=(width - 1) / 2.0, cy=(height - 1) / 2.0, width=width, height=height
+        )
 
     @property
     def matrix(self) -> np.ndarray:
@@ -70,7 +73,9 @@ def pixel_grid(width: int, height: int) -> tuple[np.ndarray, np.ndarray]:
     return np.meshgrid(np.arange(width, dtype=np.float64), np.arange(height, dtype=np.float64))
 
 
-def backproject(depth: np.ndarray, intrinsics: Intrinsics, mask: np.ndarray | None = None) -> np.ndarray:
+def backproject(
+    depth: np.ndarray, intrinsics: Intrinsics, mask: np.ndarray | None = None
+) -> np.ndarray:
     """Depth image (metres, OpenCV z) -> (N, 3) points in the camera frame.
 
     Pixels with depth <= 0, non-finite depth or outside `mask` are dropped.
@@ -101,7 +106,10 @@ def project(points_cam: np.ndarray, intrinsics: Intrinsics) -> np.ndarray:
     return np.stack([u, v], axis=1)
 
 
-def look_at(eye: np.ndarray, target: np.ndarray, up: np.ndarray = np.array([0.0, 0.0, 1.0])) -> np.ndarray:
+WORLD_UP = (0.0, 0.0, 1.0)
+
+
+def look_at(eye: np.ndarray, target: np.ndarray, up: Sequence[float] = WORLD_UP) -> np.ndarray:
     """world_T_camera for an OpenCV camera at `eye` looking at `target`."""
     eye, target, up = (np.asarray(a, dtype=np.float64) for a in (eye, target, up))
     forward = target - eye

@@ -30,7 +30,9 @@ def test_crop_stays_inside_the_frame_and_falls_back_to_the_centre() -> None:
     centre = contact_crop(image, None, 96)
     np.testing.assert_array_equal(centre, image[112:208, 72:168])
     # No contact against the background: the centre as well.
-    np.testing.assert_array_equal(contact_crop(background, background, 96), background[112:208, 72:168])
+    np.testing.assert_array_equal(
+        contact_crop(background, background, 96), background[112:208, 72:168]
+    )
 
 
 def test_preprocess_without_crop_is_the_whole_frame_resize() -> None:
