@@ -84,6 +84,7 @@ def map_object(cfg: DictConfig, obj, sensor, out: Path) -> dict:
     device = resolve_device(cfg.device)
     bound = BOUND_MARGIN * obj.bounds_radius
     mapper = build_mapper(cfg, bound, device)
+    model_cfg = model_config(cfg)  # what a checkpoint must match to resume
     scorer = build_scorer(cfg, obj)
     tracker = instantiate(cfg.mapping.tracker) if "tracker" in cfg.mapping else None
     pose_source = build_pose_source(cfg.mapping.pose, obj, tracker)
@@ -97,7 +98,7 @@ def map_object(cfg: DictConfig, obj, sensor, out: Path) -> dict:
 
     start_index = -1
     if cfg.mapping.resume:
-        resumed = load_checkpoint(cfg.mapping.resume, mapper, model_config(cfg))
+        resumed = load_checkpoint(cfg.mapping.resume, mapper, model_cfg)
         start_index = resumed["frame_index"]
         scorer.load_state(resumed["extra"].get("scorer", {}))
         pose_source.load_state(resumed["extra"].get("pose", {}))
@@ -157,7 +158,7 @@ def map_object(cfg: DictConfig, obj, sensor, out: Path) -> dict:
                 mapper,
                 frame.index,
                 {"scorer": scorer.state(), "pose": pose_source.state()},
-                model_config(cfg),
+                model_cfg,
             )
     bar.close()
     wall_s = time.perf_counter() - wall_start
@@ -176,7 +177,7 @@ def map_object(cfg: DictConfig, obj, sensor, out: Path) -> dict:
         mapper,
         last_index,
         {"scorer": scorer.state(), "pose": pose_source.state()},
-        model_config(cfg),
+        model_cfg,
     )
     if not scorer.curve or scorer.curve[-1][0] != last_index:
         scorer.score(mapper.field, last_index, last_time or 0.0, pose_source.field_T_gt_object())
@@ -210,7 +211,7 @@ def map_object(cfg: DictConfig, obj, sensor, out: Path) -> dict:
         "config": {
             "object": cfg.object.name,
             "sensor": cfg.sensor.name,
-            "model": OmegaConf.to_container(cfg.model, resolve=True),
+            "model": model_cfg,
             "classifier": cfg.classifier.get("_target_"),
             "fingers": list(cfg.sensor.get("fingers", [])) if "fingers" in cfg.sensor else None,
             "seed": int(cfg.seed),
@@ -235,10 +236,9 @@ def take_snapshot(
     field_T_gt: np.ndarray,
 ) -> None:
     """Progression snapshots go to disk at once, so a resumed run still has the early ones."""
-    if scorer.images is None:
+    maps = scorer.snapshot(field, field_T_gt)
+    if maps is None:
         return
-    scorer.snapshot(field, time_s, field_T_gt)
-    _, maps = scorer.snapshots.pop()
     np.savez_compressed(
         directory / f"{frame_index:06d}.npz",
         time_s=time_s,

@@ -83,7 +83,6 @@ class RunScorer:
         self.seed = seed
         self.curve: list[list[float]] = []  # [frame_index, time_s, matching_pct]
         self.touch_log: list[list] = []  # [frame_index, finger, predicted, gt or -1, confidence]
-        self.snapshots: list[tuple[float, dict]] = []
 
     # ---------------------------------------------------------------- during the run
     def log_touches(self, frame: Frame, labels: dict[str, TouchLabel]) -> None:
@@ -114,13 +113,11 @@ class RunScorer:
         self.curve.append([int(frame_index), float(time_s), pct])
         return pct
 
-    def snapshot(
-        self, field: nn.Module, time_s: float, field_T_gt: np.ndarray | None = None
-    ) -> None:
-        if self.images is not None:
-            self.snapshots.append(
-                (float(time_s), self.images.maps(material_predictor(field, field_T_gt)))
-            )
+    def snapshot(self, field: nn.Module, field_T_gt: np.ndarray | None = None) -> dict | None:
+        """Image-form maps of the current field (None when the object has no regions of interest)."""
+        if self.images is None:
+            return None
+        return self.images.maps(material_predictor(field, field_T_gt))
 
     # ---------------------------------------------------------------- summaries
     def classifier_accuracy(self) -> dict:
