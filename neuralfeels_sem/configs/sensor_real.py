@@ -110,13 +110,15 @@ class DynamixelConfig:
     _convert_: str = "all"
     port: str = "/dev/ttyUSB0"
     baudrate: int = 4_000_000
-    motor_ids: list[int] = field(default_factory=lambda: list(range(16)))  # Allegro joint order
+    # The motor driving each joint, in the model's joint order (index, middle, ring, thumb;
+    # 4 joints each). Stock LEAP hand: motor i drives URDF joint i.
+    motor_ids: list[int] = field(default_factory=lambda: list(range(16)))
     zero_raw: int = 2048  # register value at 0 rad
     signs: list[float] | None = None
     timeout_s: float = 0.2
     control: bool = False
     current_limit_ma: float = 350.0  # torque cap, written as the motors' current limit
-    joint_limits: list[list[float]] | None = None
+    joint_limits: list[list[float]] | None = None  # null: from the hand's kinematic model
 
     def __post_init__(self) -> None:
         if len(self.motor_ids) != 16 or len(set(self.motor_ids)) != 16:
@@ -130,22 +132,23 @@ class DynamixelConfig:
 
 @dataclass
 class ArucoPoseConfig:
-    _target_: str = "neuralfeels_sem.sensors.real.aruco_pose.ArucoObjectPose"
+    """Object pose from ArUco markers: detection settings here, the marker layout in object.aruco."""
+
+    _target_: str = "neuralfeels_sem.sensors.real.aruco_pose.from_object_layout"
     _convert_: str = "all"
-    # marker id -> object_T_marker [x, y, z, rx, ry, rz]; empty: no markers, the pose stays
-    # sensor.world_T_object (or comes from the pose tracker, mapping.pose=track).
-    markers: dict[str, list[float]] = field(default_factory=dict)  # keys are marker ids
-    marker_length_m: float = 0.02
+    layout: Any = None  # wired to ${object.aruco} by conf/sensor/real.yaml: set object.aruco
     dictionary: str = "DICT_4X4_50"
-    max_reprojection_px: float = 3.0
+    max_reprojection_px: float = 3.0  # fits with a larger RMS are dropped (pose kept)
 
     def __post_init__(self) -> None:
-        if self.marker_length_m <= 0:
+        if not self.dictionary.startswith("DICT_"):
             raise ValueError(
-                f"sensor.object_pose.marker_length_m={self.marker_length_m} must be > 0"
+                f"sensor.object_pose.dictionary={self.dictionary!r} must be an OpenCV ArUco dictionary, e.g. DICT_4X4_50"
             )
-        for marker_id, pose in self.markers.items():
-            _check_pose(f"sensor.object_pose.markers.{marker_id}", pose)
+        if self.max_reprojection_px <= 0:
+            raise ValueError(
+                f"sensor.object_pose.max_reprojection_px={self.max_reprojection_px} must be > 0"
+            )
 
 
 @dataclass
@@ -159,7 +162,9 @@ class RealSensorConfig:
     digit: DigitConfig | None = field(default_factory=DigitConfig)
     camera: RealSenseConfig | None = field(default_factory=RealSenseConfig)
     hand: Any = None  # conf/sensor/hand/: allegro (default) or dynamixel; null: no hand
-    object_pose: ArucoPoseConfig = field(default_factory=ArucoPoseConfig)
+    # ArUco markers on the object (layout in object.aruco); null: the pose stays
+    # sensor.world_T_object (a fixed object, or mapping.pose=track).
+    object_pose: ArucoPoseConfig | None = field(default_factory=ArucoPoseConfig)
     world_T_palm: list[float] = field(default_factory=lambda: [0.0] * 6)
     world_T_object: list[float] = field(
         default_factory=lambda: [0.0] * 6

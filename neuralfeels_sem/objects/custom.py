@@ -92,12 +92,15 @@ def load_custom_object(
     material: str | None = None,
     rescale_to: float | None = None,
     name: str | None = None,
+    aruco: object = None,
 ) -> MaterialObject:
     """Load a mesh file as a MaterialObject centred on its bounding-box centre.
 
     Labels come from `labels` (npy/json), or `material` for the whole mesh, or a
     `<stem>.labels.{json,npy}` file beside the mesh. `rescale_to` scales the mesh
-    uniformly so its largest extent is that many metres.
+    uniformly so its largest extent is that many metres. `aruco` (object.aruco, the
+    marker layout) is read by sensor=real from the config; it is accepted here only so the
+    object config instantiates.
     """
     class_names = tuple(class_names)
     if labels is not None and material is not None:

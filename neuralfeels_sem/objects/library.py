@@ -63,10 +63,12 @@ def _generate(name: str) -> tuple[np.ndarray, np.ndarray, np.ndarray, str]:
     return arrays
 
 
-def make_object(name: str, class_names: Sequence[str]) -> MaterialObject:
+def make_object(name: str, class_names: Sequence[str], aruco: object = None) -> MaterialObject:
     """The shipped object `name` with face labels indexing `class_names`.
 
-    Raises ConfigError for an unknown name or a material missing from class_names.
+    `aruco` (object.aruco, the marker layout) is read by sensor=real from the config; it is
+    accepted here only so the object config instantiates. Raises ConfigError for an unknown
+    name or a material missing from class_names.
     """
     if name not in RECIPES:
         raise ConfigError(

@@ -51,6 +51,19 @@ def test_object_missing_a_material_is_a_config_error() -> None:
         (["object=plushie", "object.name=plushy"], "object.name='plushy' is not a shipped object"),
         (["object=custom", "object.rescale_to=0"], "object.rescale_to=0.0 must be in"),
         (["object=custom", "object.labels=a.npy", "object.material=metal"], "are both set"),
+        (
+            ["object=plushie", "object.aruco.markers=[{id:3,pose:[0,0,0]}]"],
+            r"object.aruco.markers\[0\].pose needs 6 values",
+        ),
+        (
+            [
+                "object=custom",
+                "object.aruco.markers=[{id:3,pose:[0,0,0,0,0,0]},{id:3,pose:[0,0,0,0,0,0]}]",
+            ],
+            r"object.aruco.markers\[1\].id=3 is listed twice",
+        ),
+        (["object=plushie", "object.aruco.marker_length_m=0"], "object.aruco.marker_length_m=0.0"),
+        (["object=plushie", "object.aruco.markers=[{id:-1,pose:[0,0,0,0,0,0]}]"], "must be >= 0"),
     ],
 )
 def test_bad_values_fail_validation_with_one_line(overrides: list[str], message: str) -> None:
@@ -70,3 +83,18 @@ def test_cli_bad_object_values_exit_with_one_line() -> None:
     unknown = run_cli(["task=info", "object=plushy"])
     assert unknown.returncode != 0
     assert "object/plushy" in unknown.stderr and "Traceback" not in unknown.stderr
+
+
+def test_shipped_objects_have_no_marker_layout_and_a_layout_still_instantiates() -> None:
+    for name in SHIPPED_OBJECTS:
+        assert compose_config([f"object={name}"]).object.aruco.markers == []
+    cfg = compose_config(
+        [
+            "object=custom",
+            "object.aruco.marker_length_m=0.03",
+            "object.aruco.markers=[{id:3,pose:[0.03,0,0,0,1.5708,0]},{id:7,pose:[0,0,0.03,0,0,0]}]",
+        ]
+    )
+    validate_config(cfg)
+    assert [m.id for m in cfg.object.aruco.markers] == [3, 7]
+    assert isinstance(instantiate(cfg.object), MaterialObject)  # the mesh ignores the layout

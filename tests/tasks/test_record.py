@@ -20,6 +20,7 @@ def test_cli_without_hardware_exits_2_with_one_line_per_device(tmp_path) -> None
             "sensor=real",
             f"hydra.run.dir={tmp_path}",
             "sensor.digit.serials.index=D20001",
+            "sensor.object_pose=null",  # no ArUco layout on the object: fixed pose
         ]
     )
     assert result.returncode == 2, result.stderr

@@ -1,8 +1,9 @@
 """Object pose from ArUco markers fixed on the object, seen by the RGB-D camera (opencv-contrib).
 
 Each marker's pose on the object (`object_T_marker`, [x, y, z, rx, ry, rz]) comes from
-config; all detected markers' corners go into one PnP solve, so two or more markers give
-a well-conditioned pose. Marker frame as OpenCV defines it: centre origin, x right, y up,
+the object's config (`object.aruco`); the detection settings come from `sensor.object_pose`.
+All detected markers' corners go into one PnP solve, so two or more markers give a
+well-conditioned pose. Marker frame as OpenCV defines it: centre origin, x right, y up,
 z out of the marker; corners in detector order top-left, top-right, bottom-right, bottom-left.
 """
 
@@ -13,6 +14,7 @@ from collections.abc import Mapping, Sequence
 import cv2
 import numpy as np
 
+from neuralfeels_sem.errors import ConfigError
 from neuralfeels_sem.sensors.real.poses import pose_from_vector
 from neuralfeels_sem.utils.geometry import Intrinsics, transform_points
 
@@ -79,6 +81,7 @@ class ArucoObjectPose:
     ) -> None:
         if marker_length_m <= 0:
             raise ValueError(f"marker_length_m={marker_length_m} must be > 0")
+        # Empty: the object has no layout; RealSensor.open() reports it (MISSING_LAYOUT).
         self.object_T_marker = {int(k): pose_from_vector(v) for k, v in markers.items()}
         self.marker_length_m = marker_length_m
         self.dictionary_name = dictionary
@@ -104,3 +107,36 @@ class ArucoObjectPose:
         if rms > self.max_reprojection_px:
             return None
         return world_T_camera @ camera_T_object
+
+
+MISSING_LAYOUT = (
+    "the object pose comes from ArUco markers but the object has no marker layout: set "
+    "object.aruco.markers (e.g. [{id: 3, pose: [x, y, z, rx, ry, rz]}], object_T_marker) and "
+    "object.aruco.marker_length_m in the object's config, or sensor.object_pose=null to keep "
+    "sensor.world_T_object (e.g. with mapping.pose=track)"
+)
+
+
+def from_object_layout(
+    layout: Mapping | None,
+    dictionary: str = "DICT_4X4_50",
+    max_reprojection_px: float = 3.0,
+) -> ArucoObjectPose:
+    """The estimator for sensor.object_pose: detection settings from the sensor, markers from the object.
+
+    `layout` is the object's `aruco` entry ({marker_length_m, markers: [{id, pose}]}), wired
+    in by conf/sensor/real.yaml. Without markers the estimator is still built (every config
+    instantiates); RealSensor.open() then stops the run with MISSING_LAYOUT.
+    """
+    layout = layout or {}
+    try:
+        aruco_dictionary(dictionary)
+    except ValueError as exc:
+        raise ConfigError(f"sensor.object_pose.dictionary: {exc}") from exc
+    markers = {int(m["id"]): m["pose"] for m in layout.get("markers") or []}
+    return ArucoObjectPose(
+        markers,
+        marker_length_m=float(layout.get("marker_length_m", 0.02)),
+        dictionary=dictionary,
+        max_reprojection_px=max_reprojection_px,
+    )

@@ -17,10 +17,10 @@ from typing import Any
 import numpy as np
 from hydra.utils import get_class
 
-from neuralfeels_sem.errors import HardwareError, UserError
+from neuralfeels_sem.errors import ConfigError, HardwareError, UserError
 from neuralfeels_sem.sensors.base import Sensor
 from neuralfeels_sem.sensors.frame import CameraReading, Frame, TactileReading
-from neuralfeels_sem.sensors.real.aruco_pose import ArucoObjectPose
+from neuralfeels_sem.sensors.real.aruco_pose import MISSING_LAYOUT, ArucoObjectPose
 from neuralfeels_sem.sensors.real.digit import DigitArray
 from neuralfeels_sem.sensors.real.poses import pose_from_vector
 from neuralfeels_sem.sensors.real.realsense import RealSenseCamera
@@ -53,12 +53,14 @@ class RealSensor(Sensor):
     ) -> None:
         if fps <= 0 or duration_s <= 0:
             raise ValueError(f"fps={fps} and duration_s={duration_s} must be > 0")
+        if object_pose is not None and camera is None:
+            raise ConfigError(
+                "sensor.object_pose (ArUco markers) needs sensor.camera: configure the camera or set sensor.object_pose=null"
+            )
         self.digits = [] if digit is None else list(digit.cameras)
         self.camera = camera
         self.hand = hand
-        self.object_pose = (
-            object_pose if object_pose is not None and object_pose.object_T_marker else None
-        )
+        self.object_pose = object_pose  # None: the pose stays world_T_object
         self.duration_s = duration_s
         self.frame_period_s = 1.0 / fps
         self.world_T_palm = pose_from_vector(world_T_palm)
@@ -102,6 +104,8 @@ class RealSensor(Sensor):
                 "sensor=real has no device configured: set sensor.digit, sensor.camera or sensor.hand"
             )
         errors: list[str] = []
+        if self.object_pose is not None and not self.object_pose.object_T_marker:
+            errors.append(MISSING_LAYOUT)
         if self.hand is not None:
             try:
                 self._kinematics = get_class(self.kinematics_target)(world_T_palm=self.world_T_palm)
