@@ -9,6 +9,7 @@ from dataclasses import dataclass, field
 from typing import Any
 
 from neuralfeels_sem.sensors.frame import FINGERS
+from neuralfeels_sem.sensors.real.hand_kinematics import kinematics_target
 
 _STREAMS = {"QVGA": (60, 30), "VGA": (30, 15)}
 
@@ -93,8 +94,10 @@ class AllegroConfig:
     kp: float = 0.6
     kd: float = 0.02
     joint_limits: list[list[float]] | None = None  # null: from the hand's kinematic model
+    kinematics: str = "allegro"  # model for the DIGIT poses: allegro, leap or a class path
 
     def __post_init__(self) -> None:
+        kinematics_target(self.kinematics)
         if not 0 <= self.hand_id <= 3:
             raise ValueError(f"sensor.hand.hand_id={self.hand_id} must be in 0..3")
         if self.timeout_s <= 0:
@@ -119,8 +122,10 @@ class DynamixelConfig:
     control: bool = False
     current_limit_ma: float = 350.0  # torque cap, written as the motors' current limit
     joint_limits: list[list[float]] | None = None  # null: from the hand's kinematic model
+    kinematics: str = "leap"  # model for the DIGIT poses: leap (LEAP Hand URDF), allegro, ...
 
     def __post_init__(self) -> None:
+        kinematics_target(self.kinematics)
         if len(self.motor_ids) != 16 or len(set(self.motor_ids)) != 16:
             raise ValueError(
                 f"sensor.hand.motor_ids needs 16 distinct ids, got {list(self.motor_ids)}"
@@ -169,7 +174,6 @@ class RealSensorConfig:
     world_T_object: list[float] = field(
         default_factory=lambda: [0.0] * 6
     )  # until markers or the tracker say otherwise
-    kinematics: str = "neuralfeels_sem.sim.kinematics.HandKinematics"  # class with sensor_poses(q)
 
     def __post_init__(self) -> None:
         if self.duration_s <= 0:

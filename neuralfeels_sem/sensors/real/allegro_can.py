@@ -35,6 +35,7 @@ class AllegroCAN:
         kp: float = 0.6,
         kd: float = 0.02,
         joint_limits: Sequence[Sequence[float]] | None = None,
+        kinematics: str = "allegro",
     ) -> None:
         if timeout_s <= 0:
             raise ValueError(f"timeout_s={timeout_s} must be > 0")
@@ -48,6 +49,7 @@ class AllegroCAN:
         self.torque_limit = torque_limit
         self.kp, self.kd = kp, kd
         self.joint_limits = None if joint_limits is None else self._check_limits(joint_limits)
+        self.kinematics = kinematics  # the model RealSensor uses for DIGIT poses
         self.estopped = False
         self._bus = None
         self._last_q: np.ndarray | None = None

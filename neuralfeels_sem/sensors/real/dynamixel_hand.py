@@ -1,8 +1,9 @@
 """A Dynamixel-driven 16-joint hand (LEAP-style) over dynamixel-sdk, Protocol 2.0.
 
 Positions come from one group sync read of Present Position (X-series control table:
-address 132, 4 bytes) for the configured motor IDs, listed in Allegro joint order
-(index 0-3, middle 4-7, ring 8-11, thumb 12-15). Angle = sign * (raw - zero_raw) * 2 pi / 4096.
+address 132, 4 bytes) for the configured motor IDs, listed in the kinematic model's joint
+order (index 0-3, middle 4-7, ring 8-11, thumb 12-15; LEAP: motor i on URDF joint i).
+Angle = sign * (raw - zero_raw) * 2 pi / 4096; a LEAP Hand reads 2048 (pi) at its URDF zero.
 
 Commands (Goal Position, address 116, group sync write) are refused unless
 `control=True`; goals are clamped to the joint limits; the torque cap is written once as
@@ -58,6 +59,7 @@ class DynamixelHand:
         control: bool = False,
         current_limit_ma: float = 350.0,
         joint_limits: Sequence[Sequence[float]] | None = None,
+        kinematics: str = "leap",
     ) -> None:
         if len(motor_ids) != 16 or len(set(motor_ids)) != 16:
             raise ValueError(f"motor_ids must be 16 distinct ids, got {list(motor_ids)}")
@@ -74,6 +76,7 @@ class DynamixelHand:
         self.joint_limits = (
             None if joint_limits is None else np.asarray(joint_limits, dtype=np.float64)
         )
+        self.kinematics = kinematics  # the model RealSensor uses for DIGIT poses
         self.estopped = False
         self._port = None
         self._packet = None
@@ -149,7 +152,7 @@ class DynamixelHand:
             self._packet.write1ByteTxOnly(self._port, dxl_id, ADDR_TORQUE_ENABLE, 0)
 
     def read_joints(self) -> np.ndarray:
-        """Group sync read of the 16 present positions -> angles (rad), Allegro order."""
+        """Group sync read of the 16 present positions -> angles (rad), in motor_ids order."""
         from dynamixel_sdk import COMM_SUCCESS
 
         if self._port is None:

@@ -22,6 +22,7 @@ from neuralfeels_sem.sensors.base import Sensor
 from neuralfeels_sem.sensors.frame import CameraReading, Frame, TactileReading
 from neuralfeels_sem.sensors.real.aruco_pose import MISSING_LAYOUT, ArucoObjectPose
 from neuralfeels_sem.sensors.real.digit import DigitArray
+from neuralfeels_sem.sensors.real.hand_kinematics import kinematics_target
 from neuralfeels_sem.sensors.real.poses import pose_from_vector
 from neuralfeels_sem.sensors.real.realsense import RealSenseCamera
 from neuralfeels_sem.sim.digit_geometry import DIGIT_INTRINSICS
@@ -46,7 +47,6 @@ class RealSensor(Sensor):
         fps: float = 10.0,
         world_T_palm: Sequence[float] = (0.0,) * 6,
         world_T_object: Sequence[float] = (0.0,) * 6,
-        kinematics: str = "neuralfeels_sem.sim.kinematics.HandKinematics",
         name: str = "real",
         obj: Any = None,
         class_names: Sequence[str] | None = None,
@@ -65,7 +65,8 @@ class RealSensor(Sensor):
         self.frame_period_s = 1.0 / fps
         self.world_T_palm = pose_from_vector(world_T_palm)
         self.world_T_object = pose_from_vector(world_T_object)
-        self.kinematics_target = kinematics
+        # The hand names its model (sensor.hand.kinematics): each DIGIT pose is FK of the hand.
+        self.kinematics_name = getattr(hand, "kinematics", "allegro")
         self.name = name
         self.obj = obj  # unused on hardware; accepted so every sensor is completed alike
         self.class_names = None if class_names is None else list(class_names)
@@ -108,11 +109,12 @@ class RealSensor(Sensor):
             errors.append(MISSING_LAYOUT)
         if self.hand is not None:
             try:
-                self._kinematics = get_class(self.kinematics_target)(world_T_palm=self.world_T_palm)
+                target = kinematics_target(self.kinematics_name)
+                self._kinematics = get_class(target)(world_T_palm=self.world_T_palm)
                 self.hand.set_joint_limits(np.asarray(self._kinematics.joint_limits))
             except Exception as exc:  # import or construction of the model failed
                 errors.append(
-                    f"hand kinematics {self.kinematics_target} unavailable ({type(exc).__name__}: {exc}): set sensor.kinematics"
+                    f"hand kinematics {self.kinematics_name!r} unavailable ({type(exc).__name__}: {exc}): set sensor.hand.kinematics"
                 )
         for device in self._devices():
             try:

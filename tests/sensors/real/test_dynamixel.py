@@ -7,12 +7,17 @@ import pytest
 from dynamixel_sdk import Protocol2PacketHandler
 
 from neuralfeels_sem.errors import ConfigError, HardwareError
+from neuralfeels_sem.sensors.real.digit import DigitArray
 from neuralfeels_sem.sensors.real.dynamixel_hand import (
     DynamixelHand,
     radians_to_raw,
     raw_to_radians,
 )
+from neuralfeels_sem.sensors.real.leap_kinematics import LeapKinematics
+from neuralfeels_sem.sensors.real.real_sensor import RealSensor
+from neuralfeels_sem.sim.kinematics import HandKinematics
 from tests.sensors.real.fake_dynamixel import FakeDynamixelChain, crc16, packet
+from tests.sensors.real.video_digits import digit_like_frames, write_video
 
 IDS = list(range(10, 26))
 BAUD = 1_000_000
@@ -102,3 +107,60 @@ def test_control_clamps_goals_and_loss_disables_torque() -> None:
     # Torque-disable writes went out to every motor even though the replies stopped.
     assert all(chain.registers[(i, 64)] == b"\x00" for i in IDS)
     assert chain.bad_crc_packets == 0
+
+
+def leap_grasp_positions() -> tuple[np.ndarray, dict[int, int]]:
+    """A grasp-like LEAP pose and the Present Position each motor reports (motor i on joint i)."""
+    q = np.tile([0.1, 0.8, 0.5, 0.3], 4)
+    q[12:] = (1.2, 0.2, 0.4, 0.3)
+    return q, dict(zip(IDS, radians_to_raw(q, 2048, np.ones(16)).tolist()))
+
+
+@pytest.mark.parametrize(
+    ("kinematics", "model"), [("leap", LeapKinematics), ("allegro", HandKinematics)]
+)
+def test_real_sensor_digit_poses_are_fk_of_the_configured_hand(
+    tmp_path, kinematics: str, model: type
+) -> None:
+    q_true, positions = leap_grasp_positions()
+    videos = {
+        f: str(write_video(tmp_path / f"{f}.avi", digit_like_frames(6, seed=k)))
+        for k, f in enumerate(("index", "thumb"))
+    }
+    world_T_palm = [0.1, 0.0, 0.2, 0.0, 1.5708, 0.0]
+    with FakeDynamixelChain(IDS, positions) as chain:
+        sensor = RealSensor(
+            digit=DigitArray(
+                serials={}, fingers=["index", "thumb"], video_files=videos, background_frames=1
+            ),
+            hand=DynamixelHand(
+                port=chain.device, baudrate=BAUD, motor_ids=IDS, kinematics=kinematics
+            ),
+            duration_s=0.1,
+            fps=30.0,
+            world_T_palm=world_T_palm,
+        )
+        with sensor:
+            frames = list(sensor.frames())
+    assert len(frames) == 3 and chain.bad_crc_packets == 0
+    q = frames[0].joint_positions
+    np.testing.assert_allclose(q, q_true, atol=2 * np.pi / 4096)
+    expected = model(world_T_palm=sensor.world_T_palm).sensor_poses(q)
+    for finger in ("index", "thumb"):
+        np.testing.assert_allclose(
+            frames[-1].tactile[finger].world_T_sensor, expected[finger], atol=1e-12
+        )
+    np.testing.assert_array_equal(sensor.hand.joint_limits, model().joint_limits)
+
+
+def test_leap_joint_limits_clamp_commands() -> None:
+    _, positions = leap_grasp_positions()
+    with FakeDynamixelChain(IDS, positions) as chain:
+        hand = DynamixelHand(port=chain.device, baudrate=BAUD, motor_ids=IDS, control=True)
+        sensor = RealSensor(hand=hand, object_pose=None, duration_s=0.1)
+        with sensor:  # open() gives the hand the LEAP URDF limits
+            hand.read_joints()
+            raw = hand.command_positions(np.full(16, 3.0))
+    upper = LeapKinematics().joint_limits[:, 1]
+    np.testing.assert_array_equal(raw, radians_to_raw(upper, 2048, np.ones(16)))
+    assert raw[1] == 2048 + round(2.23 / (2 * np.pi / 4096))  # MCP forward stops at 2.23 rad

@@ -32,6 +32,13 @@ def test_hand_options_build_a_real_sensor(hand: str, cls: type) -> None:
     assert isinstance(sensor, RealSensor) and isinstance(sensor.hand, cls)
     assert [c.serial for c in sensor.digits] == ["D20001"]
     assert sensor.object_pose is None  # the pose stays sensor.world_T_object
+    assert sensor.kinematics_name == {"allegro": "allegro", "dynamixel": "leap"}[hand]
+
+
+def test_the_dynamixel_hand_can_use_the_allegro_like_model() -> None:
+    cfg = compose_config(["sensor=real", "sensor/hand=dynamixel", "sensor.hand.kinematics=allegro"])
+    validate_config(cfg)
+    assert build_sensor(cfg.sensor, None, cfg.materials).kinematics_name == "allegro"
 
 
 def test_devices_can_be_switched_off() -> None:
@@ -103,6 +110,7 @@ def test_cli_without_a_marker_layout_ends_with_the_key_to_set(tmp_path) -> None:
         ("sensor.world_T_palm=[0,0,0]", "world_T_palm"),
         ("sensor.digit.fingers=[index,pinky]", "pinky"),
         ("sensor.object_pose.dictionary=4X4", "OpenCV ArUco dictionary"),
+        ("sensor.hand.kinematics=shadow", "sensor.hand.kinematics='shadow' is unknown"),
     ],
 )
 def test_bad_values_are_one_line_config_errors(override: str, message: str) -> None:
