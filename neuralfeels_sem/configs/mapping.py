@@ -87,6 +87,15 @@ class MapperConfig:
     freespace_weight: float = 1.0
     eikonal_weight: float = 0.0
     eikonal_points: int = 256
+    # Solid-interior prior: samples this far behind seen/touched surfaces must have SDF <= 0.
+    interior_samples: int = 0  # per ray (0 = off)
+    interior_range: float = 0.015  # metres behind the surface (must exceed truncation)
+    interior_weight: float = 0.5
+    # Space-carving prior (mapping/space_prior.py): points per step in the cube, outside
+    # where camera rays passed or outside the hull of observed points, solid elsewhere.
+    space_prior_points: int = 512  # 0 = off
+    space_prior_weight: float = 0.5
+    space_prior_resolution: int = 64  # carving voxels per side
     material_weight: float = 0.1
     window_recent: int = 4
     window_by_loss: int = 4
@@ -108,6 +117,8 @@ class MapperConfig:
             "free_samples": 0,
             "material_points": 0,
             "eikonal_points": 0,
+            "interior_samples": 0,
+            "space_prior_points": 0,
             "window_recent": 1,
             "window_by_loss": 0,
             "max_keyframes": 1,
@@ -121,6 +132,15 @@ class MapperConfig:
             )
         if self.truncation <= 0:
             raise ValueError(f"mapping.mapper.truncation={self.truncation} must be > 0")
+        if self.space_prior_resolution < 8:
+            raise ValueError(
+                f"mapping.mapper.space_prior_resolution={self.space_prior_resolution} must be >= 8"
+            )
+        if self.interior_samples > 0 and self.interior_range <= self.truncation:
+            raise ValueError(
+                f"mapping.mapper.interior_range={self.interior_range} must be > truncation "
+                f"({self.truncation}), or set interior_samples=0"
+            )
         for name in ("camera_free_range", "tactile_free_range"):
             if getattr(self, name) < self.truncation:
                 raise ValueError(
@@ -132,6 +152,8 @@ class MapperConfig:
             "sdf_weight",
             "freespace_weight",
             "eikonal_weight",
+            "interior_weight",
+            "space_prior_weight",
             "material_weight",
         ):
             if getattr(self, name) < 0:

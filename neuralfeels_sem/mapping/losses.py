@@ -35,6 +35,18 @@ def freespace_loss(sdf: torch.Tensor, bound: torch.Tensor) -> torch.Tensor:
     return F.relu(-sdf) + F.relu(sdf - bound)
 
 
+def interior_loss(sdf: torch.Tensor) -> torch.Tensor:
+    """Solid-interior prior: points assumed inside must not have a positive SDF."""
+    return F.relu(sdf)
+
+
+def space_prior_loss(sdf: torch.Tensor, sign: torch.Tensor) -> torch.Tensor:
+    """Hinge on the SDF's sign: +1 targets (outside) penalise sdf < 0, -1 (solid) sdf > 0."""
+    if sign.shape != sdf.shape:
+        raise ValueError(f"sign {tuple(sign.shape)} must match sdf {tuple(sdf.shape)}")
+    return F.relu(-sign * sdf)
+
+
 def eikonal_loss(gradient: torch.Tensor) -> torch.Tensor:
     """(|grad SDF| - 1)^2 per sample."""
     if gradient.ndim != 2 or gradient.shape[1] != 3:

@@ -25,15 +25,19 @@ from neuralfeels_sem.mapping.losses import (
     batch_bound,
     eikonal_loss,
     freespace_loss,
+    interior_loss,
     material_loss,
+    space_prior_loss,
     truncated_sdf_loss,
 )
 from neuralfeels_sem.mapping.sampling import (
     RaySamples,
+    interior_points,
     random_indices,
     sample_along_rays,
     subsample,
 )
+from neuralfeels_sem.mapping.space_prior import SpaceCarvingPrior
 from neuralfeels_sem.perception.pointcloud import (
     camera_points,
     sensor_origin_and_axis,
@@ -44,7 +48,7 @@ from neuralfeels_sem.perception.touch import TouchLabel
 from neuralfeels_sem.sensors.frame import Frame
 
 POSE_SOURCES = ("gt", "track", "track_known_shape")
-LOSS_KEYS = ("total", "sdf", "freespace", "eikonal", "material", "points")
+LOSS_KEYS = ("total", "sdf", "freespace", "space", "interior", "eikonal", "material", "points")
 
 
 def resolve_pose_source(pose: str) -> str:
@@ -80,6 +84,12 @@ class OnlineMapper:
         freespace_weight: float = 1.0,
         eikonal_weight: float = 0.0,
         eikonal_points: int = 256,
+        interior_samples: int = 0,
+        interior_range: float = 0.015,
+        interior_weight: float = 0.5,
+        space_prior_points: int = 0,
+        space_prior_weight: float = 0.5,
+        space_prior_resolution: int = 64,
         material_weight: float = 0.01,
         window_recent: int = 4,
         window_by_loss: int = 4,
@@ -108,6 +118,8 @@ class OnlineMapper:
             "free_samples": free_samples,
             "material_points": material_points,
             "eikonal_points": eikonal_points,
+            "interior_samples": interior_samples,
+            "space_prior_points": space_prior_points,
         }
         for name, value in counts.items():
             if value < 0:
@@ -134,6 +146,26 @@ class OnlineMapper:
         self.freespace_weight = freespace_weight
         self.eikonal_weight = eikonal_weight
         self.eikonal_points = eikonal_points
+        self.interior_samples = interior_samples
+        self.interior_range = float(interior_range)
+        self.interior_weight = interior_weight
+        self.space_prior_points = space_prior_points
+        self.space_prior_weight = space_prior_weight
+        self.space_prior = (
+            SpaceCarvingPrior(
+                float(field.bound),
+                field.center.detach().cpu().numpy(),
+                resolution=space_prior_resolution,
+                seed=seed,
+            )
+            if space_prior_points > 0
+            else None
+        )
+        if interior_samples > 0 and self.interior_range <= self.truncation:
+            raise ValueError(
+                f"interior_range={interior_range} must exceed truncation={truncation} "
+                "(or set interior_samples=0)"
+            )
         self.material_weight = material_weight
         self.tactile_depth = tactile_depth or TactileDepth("gt")
         self.use_camera_mask = use_camera_mask
@@ -180,12 +212,19 @@ class OnlineMapper:
                 self.keyframes.add(
                     self._tensor(pts[keep.numpy()]), self._tensor(origin), frame.index
                 )
+                if self.space_prior is not None:
+                    # Every pixel's ray, hand and background included, crosses free space.
+                    ends = camera_points(frame.camera, pose, use_mask=False)
+                    self.space_prior.carve(origin, ends, self.truncation)
+                    self.space_prior.add_surface(pts[keep.numpy()])
                 self.camera_points_total += len(keep)
             else:
                 keep = subsample(
                     len(pts), self.tactile_points_per_touch, self.generator, replace_if_short=True
                 )
                 _, axis = sensor_origin_and_axis(frame.tactile[source].world_T_sensor, pose)
+                if self.space_prior is not None:
+                    self.space_prior.add_surface(pts[keep.numpy()])
                 label = touch_labels.get(source)
                 usable = label is not None and label.usable
                 self.touches.add(
@@ -196,6 +235,8 @@ class OnlineMapper:
                 )
                 self.tactile_points_total += len(keep)
         self.frames_seen += 1
+        if self.space_prior is not None:
+            self.space_prior.update_hull()
         if not self.has_data:
             return dict.fromkeys(LOSS_KEYS, 0.0)
         steps = self.steps_per_frame
@@ -273,12 +314,34 @@ class OnlineMapper:
             len(touch["labelled_points"]), self.material_points, self.generator, self.device
         )
         x_mat = touch["labelled_points"][pick]
-        x = torch.cat([p.x for p, _ in parts] + [x_mat])
-        n_geo = len(x) - len(x_mat)
+        x_in = [
+            interior_points(
+                p.surface,
+                p.direction,
+                self.interior_samples,
+                self.truncation,
+                self.interior_range,
+                self.generator,
+            )  # fmt: skip
+            for p, _ in parts
+            if self.interior_samples > 0
+        ]
+        x_in = torch.cat(x_in) if x_in else x_mat[:0]
+        x_sp, sign_sp = x_mat[:0], x_mat[:0, 0]
+        if self.space_prior is not None and self.space_prior.ready:
+            x_sp, sign_sp = self.space_prior.sample(
+                self.space_prior_points, self.truncation, self.generator, self.device
+            )
+        x_in = torch.cat([x_in, x_sp])
+        n_interior = len(x_in) - len(x_sp)
+        x = torch.cat([p.x for p, _ in parts] + [x_in, x_mat])
+        n_geo = len(x) - len(x_in) - len(x_mat)
         # One pass for geometry and material points: the hash grid dominates the cost.
         out = self.field(x)
         zero = torch.zeros((), device=self.device)
-        losses = {"sdf": zero, "freespace": zero, "eikonal": zero, "material": zero}
+        losses = dict.fromkeys(
+            ("sdf", "freespace", "space", "interior", "eikonal", "material"), zero
+        )
         if parts:
             sdf = out["sdf"][:n_geo]
             s = torch.cat([p.s for p, _ in parts])
@@ -300,13 +363,20 @@ class OnlineMapper:
                 losses["eikonal"] = eikonal_loss(grad).mean()
             if camera:
                 self._update_keyframe_losses(camera, per_sample[: len(camera[0])].detach())
+        if n_interior:
+            losses["interior"] = interior_loss(out["sdf"][n_geo : n_geo + n_interior]).mean()
+        if len(x_sp):
+            sdf_sp = out["sdf"][n_geo + n_interior : n_geo + len(x_in)]
+            losses["space"] = space_prior_loss(sdf_sp, sign_sp).mean()
         if len(x_mat):
-            logits = out["material_logits"][n_geo:]
+            logits = out["material_logits"][n_geo + len(x_in) :]
             labels, weights = touch["labelled_labels"][pick], touch["labelled_weights"][pick]
             losses["material"] = material_loss(logits, labels, weights).mean()
         total = (
             self.sdf_weight * losses["sdf"]
             + self.freespace_weight * losses["freespace"]
+            + self.interior_weight * losses["interior"]
+            + self.space_prior_weight * losses["space"]
             + self.eikonal_weight * losses["eikonal"]
             + self.material_weight * losses["material"]
         )
@@ -344,6 +414,7 @@ class OnlineMapper:
             "optimizer": self.optimizer.state_dict(),
             "keyframes": self.keyframes.state_dict(),
             "touches": self.touches.state_dict(),
+            "space_prior": self.space_prior.state_dict() if self.space_prior is not None else {},
             "counters": {
                 "frames_seen": self.frames_seen,
                 "steps": self.steps,
@@ -369,6 +440,8 @@ class OnlineMapper:
         self.optimizer.load_state_dict(state["optimizer"])
         self.keyframes.load_state_dict(state["keyframes"], self.device)
         self.touches.load_state_dict(state["touches"])
+        if self.space_prior is not None and state.get("space_prior"):
+            self.space_prior.load_state_dict(state["space_prior"])
         counters = state["counters"]
         self.frames_seen = int(counters["frames_seen"])
         self.steps = int(counters["steps"])

@@ -67,7 +67,16 @@ def test_counts_losses_and_warmup() -> None:
         "middle", contact=True, label=1, confidence=0.3, low_confidence=True
     )
     losses = mapper.add_frame(frames[0][0], labels)
-    assert set(losses) == {"total", "sdf", "freespace", "eikonal", "material", "points"}
+    assert set(losses) == {
+        "total",
+        "sdf",
+        "freespace",
+        "space",
+        "interior",
+        "eikonal",
+        "material",
+        "points",
+    }
     assert losses["points"] == 128 * 6 + 64 * 6 + 256
     assert losses["material"] > 0 and losses["eikonal"] == 0
     for frame, labels in frames[1:]:

@@ -1,0 +1,183 @@
+"""Space-carving prior for the parts of the object no sensor has seen.
+
+The camera sees an in-hand object from one side and above; its underside faces the palm
+and is never observed. The SDF there is unconstrained: the network returns values near
+zero, and marching cubes turns that noise into hollows and loose sheets (measured on
+patched_toy: precision at 5 mm 0.70, the extracted surface 40 % larger than the object).
+
+Two facts constrain that space without any sensor seeing it:
+- carved: every camera ray, also those that end on the hand or the background, crosses
+  free space up to its depth; a voxel crossed by any ray is outside the object;
+- hull: the object lies within the convex hull of its observed surface points, so a
+  point outside that hull is outside the object; a point inside it that no ray ever
+  crossed is taken as solid (the object is a solid body, not a shell).
+
+`sample` draws points in the field's cube with a target sign (+1 outside, -1 solid); the
+mapper adds a hinge loss that only pushes an SDF of the wrong sign back to zero.
+"""
+
+from __future__ import annotations
+
+import numpy as np
+import torch
+from scipy.spatial import ConvexHull, QhullError, cKDTree
+
+OUTSIDE, SOLID = 1.0, -1.0
+
+
+class SpaceCarvingPrior:
+    """Voxel record of carved free space plus the convex hull of observed surface points.
+
+    Args:
+        bound: half side of the field's cube (metres, object frame), centred on `center`.
+        center: cube centre in the object frame.
+        resolution: voxels per side of the carving grid.
+        ray_stride: carve with one ray in `ray_stride`**2 (neighbouring pixels cross the same
+            voxels, so every pixel is not needed).
+        max_hull_points: surface points kept (reservoir) for the hull.
+        seed: reservoir and sampling seed.
+    """
+
+    def __init__(
+        self,
+        bound: float,
+        center: tuple[float, float, float] | np.ndarray = (0.0, 0.0, 0.0),
+        resolution: int = 64,
+        ray_stride: int = 2,
+        max_hull_points: int = 20000,
+        seed: int = 0,
+    ) -> None:
+        if bound <= 0 or resolution < 4 or ray_stride < 1 or max_hull_points < 4:
+            raise ValueError(
+                f"need bound > 0, resolution >= 4, ray_stride >= 1, max_hull_points >= 4; got "
+                f"{bound}, {resolution}, {ray_stride}, {max_hull_points}"
+            )
+        self.bound = float(bound)
+        self.center = np.asarray(center, dtype=np.float64).reshape(3)
+        self.resolution = int(resolution)
+        self.ray_stride = int(ray_stride)
+        self.max_hull_points = int(max_hull_points)
+        self.carved = np.zeros((resolution,) * 3, dtype=bool)
+        self.hull_points = np.zeros((0, 3), dtype=np.float32)
+        self.points_seen = 0
+        self.facets: np.ndarray | None = None  # (F, 4): n . x + d <= 0 inside
+        self._tree: cKDTree | None = None
+        self._rng = np.random.default_rng(seed)
+
+    # ------------------------------------------------------------------ updates
+    def carve(self, origin: np.ndarray, ends: np.ndarray, stop_before: float) -> None:
+        """Mark voxels crossed by rays from `origin` to `stop_before` short of each end point."""
+        ends = np.asarray(ends, dtype=np.float64).reshape(-1, 3)[:: self.ray_stride**2]
+        origin = np.asarray(origin, dtype=np.float64).reshape(3)
+        if len(ends) == 0:
+            return
+        ray = ends - origin
+        length = np.linalg.norm(ray, axis=1)
+        keep = length > stop_before
+        ray, length = ray[keep], length[keep]
+        direction = ray / length[:, None]
+        # Only the part of each ray inside the cube matters: slab intersection.
+        lo, hi = self.center - self.bound, self.center + self.bound
+        with np.errstate(divide="ignore", invalid="ignore"):
+            t0 = (lo - origin) / direction
+            t1 = (hi - origin) / direction
+        t_enter = np.nan_to_num(np.minimum(t0, t1), nan=-np.inf).max(axis=1).clip(min=0.0)
+        t_exit = np.minimum(
+            np.nan_to_num(np.maximum(t0, t1), nan=np.inf).min(axis=1), length - stop_before
+        )
+        inside = t_exit > t_enter
+        if not inside.any():
+            return
+        direction, t_enter, t_exit = direction[inside], t_enter[inside], t_exit[inside]
+        step = 0.5 * self.voxel_size
+        steps = int(np.ceil((t_exit - t_enter).max() / step)) + 1
+        t = t_enter[:, None] + step * np.arange(steps)[None, :]
+        valid = t <= t_exit[:, None]
+        points = origin + t[valid][:, None] * np.repeat(direction, steps, axis=0)[valid.ravel()]
+        idx = self._voxel_index(points)
+        self.carved[idx[:, 0], idx[:, 1], idx[:, 2]] = True
+
+    def add_surface(self, points: np.ndarray) -> None:
+        """Add observed surface points to the hull reservoir (uniform over all seen points)."""
+        points = np.asarray(points, dtype=np.float32).reshape(-1, 3)
+        room = max(self.max_hull_points - len(self.hull_points), 0)
+        if room:
+            self.hull_points = np.vstack([self.hull_points, points[:room]])
+        rest = points[room:]
+        seen = self.points_seen + min(room, len(points))
+        if len(rest):
+            # Reservoir sampling, vectorised: the k-th point overall replaces a random slot
+            # with probability max_hull_points / k.
+            slot = self._rng.integers(0, seen + np.arange(1, len(rest) + 1))
+            take = slot < self.max_hull_points
+            self.hull_points[slot[take]] = rest[take]
+        self.points_seen = seen + len(rest)
+
+    def update_hull(self) -> None:
+        """Recompute the convex hull of the reservoir (no hull while it is degenerate)."""
+        self.facets, self._tree = None, None
+        if len(self.hull_points) < 4:
+            return
+        try:
+            self.facets = ConvexHull(self.hull_points.astype(np.float64)).equations
+        except QhullError:  # all points on a plane or a line: no volume yet
+            return
+        self._tree = cKDTree(self.hull_points)
+
+    # ------------------------------------------------------------------ queries
+    @property
+    def voxel_size(self) -> float:
+        return 2.0 * self.bound / self.resolution
+
+    @property
+    def ready(self) -> bool:
+        return self.facets is not None
+
+    def _voxel_index(self, points: np.ndarray) -> np.ndarray:
+        rel = (points - (self.center - self.bound)) / self.voxel_size
+        return np.clip(np.floor(rel).astype(np.int64), 0, self.resolution - 1)
+
+    def label(self, points: np.ndarray) -> np.ndarray:
+        """Target sign per point: +1 outside (carved or outside the hull), -1 solid."""
+        points = np.asarray(points, dtype=np.float64).reshape(-1, 3)
+        if self.facets is None:
+            raise ValueError("no hull yet: call add_surface and update_hull first")
+        idx = self._voxel_index(points)
+        carved = self.carved[idx[:, 0], idx[:, 1], idx[:, 2]]
+        in_hull = (points @ self.facets[:, :3].T + self.facets[:, 3] <= 0.0).all(axis=1)
+        return np.where(carved | ~in_hull, OUTSIDE, SOLID).astype(np.float32)
+
+    def sample(
+        self, n: int, clearance: float, generator: torch.Generator, device: torch.device
+    ) -> tuple[torch.Tensor, torch.Tensor]:
+        """Up to n uniform points in the cube with their target signs.
+
+        Points within `clearance` of an observed surface point are dropped: near the surface
+        the measurements decide, and a carved voxel may straddle the surface.
+        """
+        u = torch.rand((n, 3), generator=generator, dtype=torch.float64).numpy()
+        half = self.bound - self.voxel_size
+        points = self.center + (2.0 * u - 1.0) * half
+        signs = self.label(points)
+        far = self._tree.query(points, distance_upper_bound=clearance)[0] > clearance
+        return (
+            torch.as_tensor(points[far], dtype=torch.float32, device=device),
+            torch.as_tensor(signs[far], device=device),
+        )
+
+    # ------------------------------------------------------------------ persistence
+    def state_dict(self) -> dict:
+        return {
+            "carved": torch.from_numpy(np.packbits(self.carved)),
+            "hull_points": torch.from_numpy(self.hull_points.copy()),
+            "points_seen": self.points_seen,
+            "rng": self._rng.bit_generator.state,
+        }
+
+    def load_state_dict(self, state: dict) -> None:
+        bits = np.unpackbits(state["carved"].numpy())[: self.resolution**3]
+        self.carved = bits.reshape((self.resolution,) * 3).astype(bool)
+        self.hull_points = state["hull_points"].numpy().astype(np.float32)
+        self.points_seen = int(state["points_seen"])
+        self._rng.bit_generator.state = state["rng"]
+        self.update_hull()

@@ -1,0 +1,107 @@
+"""SpaceCarvingPrior: carving along rays, hull labels, reservoir, resume."""
+
+from __future__ import annotations
+
+import numpy as np
+import pytest
+import torch
+
+from neuralfeels_sem.mapping.losses import space_prior_loss
+from neuralfeels_sem.mapping.space_prior import OUTSIDE, SOLID, SpaceCarvingPrior
+
+
+def _sphere_points(radius: float, n: int, seed: int = 0) -> np.ndarray:
+    v = np.random.default_rng(seed).normal(size=(n, 3))
+    return radius * v / np.linalg.norm(v, axis=1, keepdims=True)
+
+
+def test_carving_marks_the_ray_up_to_the_stop_and_nothing_behind() -> None:
+    prior = SpaceCarvingPrior(bound=0.1, resolution=20)  # 1 cm voxels
+    origin = np.array([0.5, 0.005, 0.005])  # far outside the cube, on +x
+    end = np.array([[0.0, 0.005, 0.005]])
+    prior.carve(origin, end, stop_before=0.02)
+    carved_x = np.nonzero(prior.carved[:, 10, 10])[0]
+    # Voxel i covers x in [-0.1 + 0.01 i, -0.09 + 0.01 i): the ray stops at x = 0.02.
+    assert carved_x.min() == 12 and carved_x.max() == 19
+    assert prior.carved.sum() == len(carved_x)  # only that row of voxels
+
+
+def test_rays_missing_the_cube_carve_nothing() -> None:
+    prior = SpaceCarvingPrior(bound=0.1, resolution=16)
+    prior.carve(np.array([0.5, 0.5, 0.5]), np.array([[0.5, 0.5, 0.2]]), stop_before=0.005)
+    assert not prior.carved.any()
+
+
+def test_labels_inside_hull_solid_outside_hull_or_carved_outside() -> None:
+    prior = SpaceCarvingPrior(bound=0.1, resolution=32)
+    prior.add_surface(_sphere_points(0.05, 2000))
+    prior.update_hull()
+    assert prior.ready
+    points = np.array([[0.0, 0.0, 0.0], [0.0, 0.0, 0.08], [0.03, 0.0, 0.0]])
+    assert prior.label(points).tolist() == [SOLID, OUTSIDE, SOLID]
+    # A ray down the x axis into the sphere carves the +x part of the interior.
+    prior.carve(np.array([0.5, 0.0, 0.0]), np.array([[0.0, 0.0, 0.0]]), stop_before=0.015)
+    assert prior.label(points).tolist() == [SOLID, OUTSIDE, OUTSIDE]
+
+
+def test_sample_keeps_clear_of_observed_surface() -> None:
+    prior = SpaceCarvingPrior(bound=0.1, resolution=32)
+    surface = _sphere_points(0.05, 4000)
+    prior.add_surface(surface)
+    prior.update_hull()
+    g = torch.Generator().manual_seed(0)
+    x, sign = prior.sample(4000, 0.01, g, torch.device("cpu"))
+    r = x.norm(dim=1)
+    assert len(x) > 1000 and x.shape == (len(sign), 3)
+    assert ((r - 0.05).abs() > 0.0095).all()  # within 1 cm of the sphere: dropped
+    assert (sign[r < 0.04] == SOLID).all() and (sign[r > 0.06] == OUTSIDE).all()
+
+
+def test_degenerate_points_give_no_hull() -> None:
+    prior = SpaceCarvingPrior(bound=0.1)
+    flat = np.random.default_rng(0).uniform(-0.05, 0.05, (100, 3))
+    flat[:, 2] = 0.0
+    prior.add_surface(flat)
+    prior.update_hull()
+    assert not prior.ready
+    with pytest.raises(ValueError, match="no hull"):
+        prior.label(np.zeros((1, 3)))
+
+
+def test_reservoir_is_capped_and_spread_over_all_points() -> None:
+    prior = SpaceCarvingPrior(bound=0.1, max_hull_points=500)
+    first = np.zeros((500, 3), np.float32)
+    second = np.ones((4500, 3), np.float32)
+    prior.add_surface(first)
+    prior.add_surface(second)
+    assert prior.hull_points.shape == (500, 3) and prior.points_seen == 5000
+    share_second = prior.hull_points[:, 0].mean()
+    assert 0.8 < share_second < 0.97  # about 90 % of the points seen came second
+
+
+def test_state_round_trip() -> None:
+    prior = SpaceCarvingPrior(bound=0.1, resolution=16, seed=3)
+    prior.add_surface(_sphere_points(0.05, 300))
+    prior.carve(np.array([0.5, 0.0, 0.0]), np.array([[0.0, 0.0, 0.0]]), 0.005)
+    prior.update_hull()
+    other = SpaceCarvingPrior(bound=0.1, resolution=16, seed=99)
+    other.load_state_dict(prior.state_dict())
+    assert np.array_equal(other.carved, prior.carved)
+    assert np.array_equal(other.hull_points, prior.hull_points) and other.ready
+    more = _sphere_points(0.05, 50, seed=1)
+    prior.add_surface(more)
+    other.add_surface(more)
+    assert np.array_equal(other.hull_points, prior.hull_points)
+
+
+def test_bad_arguments_raise() -> None:
+    with pytest.raises(ValueError, match="bound"):
+        SpaceCarvingPrior(bound=0.0)
+    with pytest.raises(ValueError, match="match"):
+        space_prior_loss(torch.zeros(3), torch.zeros(2))
+
+
+def test_space_prior_loss_is_a_sign_hinge() -> None:
+    sdf = torch.tensor([-0.01, 0.02, -0.01, 0.02])
+    sign = torch.tensor([OUTSIDE, OUTSIDE, SOLID, SOLID])
+    assert torch.allclose(space_prior_loss(sdf, sign), torch.tensor([0.01, 0.0, 0.0, 0.02]))
