@@ -50,7 +50,9 @@ THUMB_BASE = (
 # DIGIT on the distal link (frame at the last joint, link along +z, pad toward +x).
 DIGIT_ALONG = 0.025  # gel centre distance from the last joint along the finger
 DIGIT_PAD_X = LINK_RADIUS + 0.0032  # gel surface offset from the link axis
-DIGIT_BOX_HALF = (0.0115, 0.0125, 0.016)  # (along pad normal, across, along finger)
+# (along pad normal, across, along finger); across: a DIGIT is about 20 mm wide (the gel
+# 18 mm), so neighbouring fingertips can touch a narrow object side by side
+DIGIT_BOX_HALF = (0.0115, 0.0103, 0.016)
 # Rotation distal-link <- sensor: x_s = -y, y_s = -z (toward the finger base), z_s = +x.
 LINK_R_SENSOR = np.array([[0.0, 0.0, 1.0], [-1.0, 0.0, 0.0], [0.0, -1.0, 0.0]])
 

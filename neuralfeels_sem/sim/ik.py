@@ -26,12 +26,23 @@ class FingerTarget:
 
     gel_position: np.ndarray  # (3,) world
     pad_direction: np.ndarray  # (3,) world unit vector = desired sensor +z (into the object)
+    # Point of the gel surface that goes to gel_position: (x, y) in the sensor frame from the
+    # gel centre. A pad tilted against the surface touches with an off-centre point; placing
+    # that point keeps its press exact while the IK turns the pad about it.
+    gel_offset: np.ndarray = (0.0, 0.0)
 
     def __post_init__(self) -> None:
         self.gel_position = np.asarray(self.gel_position, dtype=np.float64)
         self.pad_direction = np.asarray(self.pad_direction, dtype=np.float64)
-        if self.gel_position.shape != (3,) or self.pad_direction.shape != (3,):
-            raise ValueError("FingerTarget needs (3,) gel_position and pad_direction")
+        self.gel_offset = np.asarray(self.gel_offset, dtype=np.float64)
+        if (
+            self.gel_position.shape != (3,)
+            or self.pad_direction.shape != (3,)
+            or self.gel_offset.shape != (2,)
+        ):
+            raise ValueError(
+                "FingerTarget needs (3,) gel_position and pad_direction and a (2,) gel_offset"
+            )
         norm = np.linalg.norm(self.pad_direction)
         if norm < 1e-9:
             raise ValueError("FingerTarget.pad_direction must be non-zero")
@@ -70,6 +81,7 @@ class FingertipIK:
             self.limits[f] = np.array([model.jnt_range[j] for j in ids])
         self._jacp = np.zeros((3, model.nv))
         self._jacr = np.zeros((3, model.nv))
+        self._site_body = {f: int(model.site_bodyid[s]) for f, s in self.site_ids.items()}
 
     def forward(self) -> None:
         mujoco.mj_kinematics(self.model, self.data)
@@ -79,6 +91,12 @@ class FingertipIK:
         """Current (gel centre (3,), pad direction (3,)) of a finger in the world."""
         sid = self.site_ids[finger]
         return self.data.site_xpos[sid].copy(), self.data.site_xmat[sid].reshape(3, 3)[:, 2].copy()
+
+    def gel_point(self, finger: str, offset: np.ndarray) -> np.ndarray:
+        """World position of the gel surface point at sensor-frame (x, y) `offset` from its centre."""
+        sid = self.site_ids[finger]
+        rot = self.data.site_xmat[sid].reshape(3, 3)
+        return self.data.site_xpos[sid] + rot[:, 0] * offset[0] + rot[:, 1] * offset[1]
 
     def solve(self, targets: dict[str, FingerTarget]) -> dict[str, float]:
         """Move the targeted fingers from the current qpos; return position error (m) per finger."""
@@ -93,12 +111,20 @@ class FingertipIK:
             for finger in list(active):
                 target = targets[finger]
                 pos, pad = self.gel_pose(finger)
+                off_centre = target.gel_offset.any()
+                if off_centre:
+                    pos = self.gel_point(finger, target.gel_offset)
                 err_p = target.gel_position - pos
                 errors[finger] = float(np.sqrt(err_p @ err_p))
                 err_r = _cross(pad, target.pad_direction)  # axis * sin(angle) toward the target
-                mujoco.mj_jacSite(
-                    self.model, self.data, self._jacp, self._jacr, self.site_ids[finger]
-                )
+                if off_centre:
+                    mujoco.mj_jac(
+                        self.model, self.data, self._jacp, self._jacr, pos, self._site_body[finger]
+                    )
+                else:
+                    mujoco.mj_jacSite(
+                        self.model, self.data, self._jacp, self._jacr, self.site_ids[finger]
+                    )
                 dofs = self.dof_adr[finger]
                 jp, jr = self._jacp[:, dofs], self._jacr[:, dofs]
                 # Position first (damped least squares); the pad direction only in the
@@ -124,9 +150,9 @@ class FingertipIK:
             if not active:
                 break
         self.forward()
-        for finger in targets:
+        for finger, target in targets.items():
             errors[finger] = float(
-                np.linalg.norm(targets[finger].gel_position - self.gel_pose(finger)[0])
+                np.linalg.norm(target.gel_position - self.gel_point(finger, target.gel_offset))
             )
         return errors
 

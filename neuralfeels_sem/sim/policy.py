@@ -10,11 +10,15 @@ staggered by a quarter period so that about three fingers touch at any time:
   transfer it swings, outside the object, to the next contact point;
   approach it presses onto the new point.
 
-A new contact point comes from a sampler (rig.py): a random posture near the finger's
-natural one, whose pad, pushed along its facing direction, meets the object at
-touch-down time; so every contact is reachable by construction and over a run the
-touches sweep a band around the turning object and beyond. The plan is a pure function of time, seed and trajectory: targets are
-given in the object frame and the rig (rig.py) turns them into joint angles by IK.
+A new contact comes from a sampler (rig.py): a random posture of the finger whose gel,
+pushed along its facing direction, meets the object at touch-down time; so every contact
+is reachable by construction and over a run the touches sweep a band around the turning
+object and beyond. The sampler is told where the other fingers are while the contact
+lasts (`busy`), so that fingers keep clear of each other, and a finger that found no
+room claims it: on an object too narrow for all fingers at once, they take turns.
+Targets are given in the object frame and the rig (rig.py) turns them into joint angles
+by IK; the plan depends on time, seed, trajectory and the order in which contacts were
+asked for (repeatable run to run).
 """
 
 from __future__ import annotations
@@ -36,10 +40,21 @@ LIFT_END, TRANSFER_END = 0.3, 0.7  # sub-phases of the non-contact part of a cyc
 class Contact:
     """A planned touch, in the object frame (it turns with the object)."""
 
-    point: np.ndarray  # (3,) surface point in front of the gel centre
-    normal: np.ndarray  # (3,) outward unit surface normal there
+    # (3,) where the gel centre is when the gel just touches (deepest reach 0); for a
+    # head-on touch, the surface point in front of the gel centre
+    point: np.ndarray
+    normal: np.ndarray  # (3,) outward unit surface normal where the object reaches deepest
     pad: np.ndarray  # (3,) unit pad direction (sensor +z) the finger can reach there
-    posture: np.ndarray | None = None  # (4,) joint angles from which the IK reached it
+    posture: np.ndarray | None = None  # (4,) the finger's joint angles at that touch
+
+
+@dataclass(frozen=True)
+class Busy:
+    """Room another finger holds (a planned contact) or claims while a new contact lasts."""
+
+    finger: str
+    posture: np.ndarray  # (4,) its joint angles there
+    firm: bool  # must be kept clear of; else only where the sampler can
 
 
 @dataclass(frozen=True)
@@ -53,8 +68,8 @@ class FingerPlan:
     contact: Contact | None  # the point being touched (contact phase) or None
 
 
-# (finger, world_T_object at touch-down, rng) -> a reachable Contact, or None
-ContactSampler = Callable[[str, np.ndarray, np.random.Generator], "Contact | None"]
+# (finger, touch-down time (s), rng, busy) -> a reachable Contact, or None
+ContactSampler = Callable[[str, float, np.random.Generator, list[Busy]], "Contact | None"]
 
 
 class GaitingPolicy:
@@ -67,6 +82,7 @@ class GaitingPolicy:
         contact_fraction: float = 0.75,
         lift_m: float = 0.008,
         seed: int = 0,
+        home: dict[str, np.ndarray] | None = None,
     ) -> None:
         if not 0.0 < contact_fraction < 1.0 or period_s <= 0 or lift_m <= 0:
             raise ValueError(
@@ -76,6 +92,10 @@ class GaitingPolicy:
         self.press = dict(press_depth_m)
         self.period, self.contact_fraction, self.lift = period_s, contact_fraction, lift_m
         self.seed = seed
+        # finger -> joint posture (4,) whose room it claims when it holds no planned contact:
+        # its home posture, then its latest contact, or a touch the sampler found blocked
+        self.claims = dict(home or {})
+        self.last_touch: dict[str, float] = {}  # finger -> start of its latest planned contact
         self._contacts: dict[tuple[str, int], Contact | None] = {}
         self.broken: set[tuple[str, int]] = set()  # (finger, cycle) whose contact the rig gave up
         # Where a finger actually touched last in a cycle (the rig lets the surface slide under
@@ -88,16 +108,66 @@ class GaitingPolicy:
         return k, s - k
 
     def contact(self, finger: str, cycle: int) -> Contact | None:
-        """The surface point a finger touches in a cycle (cached; None if its ray misses)."""
+        """The touch a finger makes in a cycle (cached; None if the sampler found none)."""
         key = (finger, cycle)
         if key not in self._contacts:
-            self._contacts[key] = self._choose(finger, cycle)
+            c = self._contacts[key] = self._choose(finger, cycle)
+            if c is not None:
+                self.last_touch[finger] = self.touchdown(finger, cycle)
+                if c.posture is not None:
+                    self.claims[finger] = c.posture
         return self._contacts[key]
 
+    def window(self, finger: str, cycle: int) -> tuple[float, float]:
+        """Time span (s) a finger spends near its contact of `cycle`.
+
+        From the start of its approach to the end of the transfer that takes it away.
+        """
+        rest = 1.0 - self.contact_fraction
+        base = cycle - PHASE_OFFSETS[finger]
+        start = base - rest * (1.0 - TRANSFER_END)
+        end = base + self.contact_fraction + rest * TRANSFER_END
+        return start * self.period, end * self.period
+
+    def touchdown(self, finger: str, cycle: int) -> float:
+        """Start (s) of a finger's contact phase in `cycle` (not before 0)."""
+        return max((cycle - PHASE_OFFSETS[finger]) * self.period, 0.0)
+
+    def busy(self, finger: str, cycle: int) -> list[Busy]:
+        """Where the other fingers are while this finger's contact of `cycle` lasts.
+
+        Firm: their planned contacts that overlap it in time. A claim, for a finger without
+        a planned contact at the end of this one (not planned yet, or none found): its
+        latest contact (fingers come back near where they touched, as the object turns
+        under them) or, if the sampler found its touches blocked by neighbours, the best of
+        those. A claim is firm if its finger has gone longer without a contact than this
+        one: on an object too narrow for all fingers at once, they take turns.
+        """
+        start, end = self.window(finger, cycle)
+        found: list[Busy] = []
+        for other in self.press:
+            if other == finger:
+                continue
+            holds_to_end = False
+            for k in range(cycle - 2, cycle + 3):  # windows are about one period long
+                c = self._contacts.get((other, k))
+                if c is None or c.posture is None:
+                    continue
+                s, e = self.window(other, k)
+                if s < end and start < e:
+                    found.append(Busy(other, c.posture, True))
+                    holds_to_end |= e >= end
+            claim = self.claims.get(other)
+            if not holds_to_end and claim is not None:
+                hungrier = self.last_touch.get(other, -np.inf) < self.last_touch.get(
+                    finger, -np.inf
+                )
+                found.append(Busy(other, claim, hungrier))
+        return found
+
     def _choose(self, finger: str, cycle: int) -> Contact | None:
-        touchdown = max((cycle - PHASE_OFFSETS[finger]) * self.period, 0.0)
         rng = np.random.default_rng([self.seed, FINGERS.index(finger), cycle + 1_000_000])
-        return self.sampler(finger, self.trajectory.pose(touchdown), rng)
+        return self.sampler(finger, self.touchdown(finger, cycle), rng, self.busy(finger, cycle))
 
     def _pressed(self, finger: str, c: Contact) -> np.ndarray:
         return c.point + self.press[finger] * c.pad

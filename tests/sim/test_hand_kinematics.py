@@ -105,3 +105,23 @@ def test_ik_reaches_reachable_targets_within_1mm(finger: str) -> None:
         assert np.linalg.norm(hand.gel_centres(q)[finger] - goal_pos) == pytest.approx(
             errors[finger], abs=1e-9
         )
+
+
+def test_ik_places_an_off_centre_gel_point() -> None:
+    """A tilted pad touches with its edge: the IK can put that gel point on the target."""
+    hand = HandKinematics()
+    rng = np.random.default_rng(5)
+    limits = hand.joint_limits
+    ik = FingertipIK(hand.model, hand.data)
+    offset = np.array([0.008, -0.01])  # near a corner of the 18 x 24 mm gel
+    for _ in range(5):
+        q_goal = rng.uniform(limits[:, 0] + 0.2, limits[:, 1] - 0.2)
+        hand.sensor_poses(q_goal)
+        goal = ik.gel_point("index", offset)
+        _, pad = ik.gel_pose("index")
+        hand.data.qpos[:] = np.clip(q_goal + rng.normal(0, 0.2, 16), limits[:, 0], limits[:, 1])
+        errors = ik.solve({"index": FingerTarget(goal, pad, offset)})
+        assert errors["index"] < 1e-3
+        np.testing.assert_allclose(ik.gel_point("index", offset), goal, atol=1e-3)
+    with pytest.raises(ValueError, match="gel_offset"):
+        FingerTarget(goal, pad, (0.0, 0.0, 0.0))

@@ -6,14 +6,16 @@ import numpy as np
 import pytest
 
 from neuralfeels_sem.sensors.frame import FINGERS
-from neuralfeels_sem.sim.policy import Contact, GaitingPolicy
+from neuralfeels_sem.sim.policy import Busy, Contact, GaitingPolicy
 from neuralfeels_sem.sim.trajectory import ObjectTrajectory
 
 RADIUS = 0.04
 PRESS = {"index": 0.0015, "middle": 0.0015, "ring": 0.0015, "thumb": 0.0007}
 
 
-def sphere_sampler(finger: str, world_T_object: np.ndarray, rng: np.random.Generator) -> Contact:
+def sphere_sampler(
+    finger: str, touchdown_s: float, rng: np.random.Generator, busy: list[Busy]
+) -> Contact:
     """A random point on a sphere of RADIUS around the object origin, touched head-on."""
     u = rng.normal(size=3)
     u /= np.linalg.norm(u)
@@ -84,3 +86,38 @@ def test_plan_is_repeatable_and_a_broken_contact_lifts() -> None:
 def test_bad_contact_fraction_is_a_value_error(fraction: float) -> None:
     with pytest.raises(ValueError, match="contact_fraction"):
         make_policy(fraction)
+
+
+def test_busy_lists_overlapping_contacts_firm_and_claims_of_hungrier_fingers() -> None:
+    """Fingers keep clear of the neighbours' planned touches; one left without a touch claims room."""
+    postures = {f: np.full(4, float(i)) for i, f in enumerate(FINGERS)}
+    found = {"index": None, "middle": "touch", "ring": "touch", "thumb": "touch"}
+    seen: dict[str, list[Busy]] = {}
+
+    def sampler(finger: str, touchdown_s: float, rng: np.random.Generator, busy: list[Busy]):
+        seen[finger] = busy
+        if found[finger] is None:
+            return None
+        u = np.array([1.0, 0.0, 0.0])
+        return Contact(RADIUS * u, u, -u, posture=postures[finger])
+
+    home = {f: -postures[f] for f in FINGERS}
+    traj = ObjectTrajectory(np.zeros(3), (0, 0, 1), speed_deg_s=30.0)
+    policy = GaitingPolicy(traj, sampler, PRESS, seed=0, home=home)
+    hover, pad = np.array([0.1, 0.0, 0.0]), np.array([-1.0, 0.0, 0.0])
+    for finger in ("middle", "index"):
+        policy.plan(finger, 0.0, hover, pad)
+    # The index, planned after the middle finger, must keep clear of its touch.
+    firm = [b for b in seen["index"] if b.firm]
+    assert any(b.finger == "middle" and b.posture is postures["middle"] for b in firm)
+    # The index found nothing. The ring has not touched yet either: for it the index's claim
+    # (its home posture) is only a preference.
+    policy.plan("ring", 0.0, hover, pad)
+    claims = [b for b in seen["ring"] if b.finger == "index"]
+    assert len(claims) == 1 and not claims[0].firm
+    np.testing.assert_array_equal(claims[0].posture, home["index"])
+    # The middle finger has touched, the index has not: for the middle finger's next touch
+    # the index's claim is firm, so that the index gets a turn.
+    policy.plan("middle", 1.0, hover, pad)
+    claims = [b for b in seen["middle"] if b.finger == "index"]
+    assert claims and all(b.firm for b in claims)

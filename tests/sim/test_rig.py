@@ -6,9 +6,10 @@ import numpy as np
 import pytest
 from scipy.spatial import cKDTree
 
+from neuralfeels_sem.bench.finger_contacts import finger_gaps, finger_geoms
 from neuralfeels_sem.sensors.frame import FINGERS
 from neuralfeels_sem.sim.kinematics import HandKinematics
-from neuralfeels_sem.sim.rig import SimRig
+from neuralfeels_sem.sim.rig import OVERLAP_TOLERANCE_M, SimRig
 from tests.sim.shapes import two_material_sphere
 
 
@@ -98,3 +99,15 @@ def test_other_rotation_axis_turns_about_it_and_fingers_still_touch() -> None:
     angle = np.degrees(np.arccos(np.clip((np.trace(rot) - 1) / 2, -1, 1)))
     assert angle == pytest.approx(30.0 * 2.9, abs=1e-6)
     assert np.mean([sum(s.touching.values()) for s in states]) >= 2.0
+
+
+def test_fingers_do_not_run_into_each_other(run) -> None:
+    _, rig, states = run
+    hand = HandKinematics(rig.scene.world_T_palm)
+    geoms = finger_geoms(hand.model)
+    worst = np.inf
+    for s in states:
+        hand.sensor_poses(s.joint_positions)
+        worst = min(worst, *finger_gaps(hand.model, hand.data, geoms).values())
+    # Links and DIGIT bodies of different fingers at most touch (run-time tolerance 1 mm).
+    assert worst >= -OVERLAP_TOLERANCE_M - 1e-4

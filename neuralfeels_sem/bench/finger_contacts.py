@@ -1,0 +1,210 @@
+"""Per-object, per-finger contact fractions of the simulated rig, from the DIGITs' ground truth.
+
+For each object the rig runs `duration_s` at `fps`; every frame each finger's DIGIT
+renders its ground-truth contact mask (the renderer's depth pass only, no shading)
+and the finger counts as in contact when at least `min_pixels` gel pixels touch.
+Also reported: how often contact is re-made (gaiting), the rig's own `touching`
+flag and press depth, the share of the surface within 1 cm of a touched point, the
+closest approach between geoms of different fingers (DIGIT bodies and links; negative =
+overlap), the closest approach of gel centres and the worst joint-limit violation.
+
+    python -m neuralfeels_sem.bench.finger_contacts                      # all 7 objects
+    python -m neuralfeels_sem.bench.finger_contacts --objects candle_holder --duration 5
+
+Not a bench_* module, so `make bench` does not run it (about half a minute per object).
+"""
+
+from __future__ import annotations
+
+import argparse
+import itertools
+import json
+import time
+from collections.abc import Sequence
+from dataclasses import asdict, dataclass
+
+import mujoco
+import numpy as np
+from scipy.spatial import cKDTree
+
+from neuralfeels_sem.objects.library import make_object
+from neuralfeels_sem.objects.material_object import MaterialObject
+from neuralfeels_sem.objects.procedural import RECIPES
+from neuralfeels_sem.sensors.frame import FINGERS
+from neuralfeels_sem.sim.digit_geometry import GEL_DISTANCE_M
+from neuralfeels_sem.sim.rig import SimRig
+
+CLASSES = ("plastic", "metal", "fabric", "wood")
+MIN_PIXELS = 50  # contact pixels (of 76,800) for a frame to count as a touch
+
+
+@dataclass
+class ContactReport:
+    object: str
+    frames: int
+    contact_fraction: dict[str, float]  # share of frames with >= min_pixels contact pixels
+    remakes: dict[str, int]  # no-contact -> contact transitions (gaiting)
+    touching_fraction: dict[str, float]  # the rig's own touching flag
+    mean_contact_px: dict[str, float]  # mean contact area over frames in contact
+    mean_press_mm: dict[str, float]  # the rig's press depth while touching
+    min_finger_gap_m: dict[str, float]  # closest approach per finger pair (geom distance)
+    min_gel_distance_m: dict[str, float]  # closest gel centres per finger pair
+    joint_limit_violation_rad: float  # worst excursion past a joint limit (0 = none)
+    coverage: float  # share of the surface within 1 cm of a touched point (rig's touches)
+    rig_updates_per_s: float
+
+
+def finger_geoms(model: mujoco.MjModel) -> dict[str, list[int]]:
+    """Geom ids (links and DIGIT body) of each finger."""
+    return {
+        f: [g for g in range(model.ngeom) if (model.geom(g).name or "").startswith(f"{f}_")]
+        for f in FINGERS
+    }
+
+
+def finger_gaps(model: mujoco.MjModel, data: mujoco.MjData, geoms: dict[str, list[int]]) -> dict:
+    """Smallest signed distance between any geoms of two fingers, per finger pair (m)."""
+    gaps = {}
+    fromto = np.zeros(6)
+    for a, b in itertools.combinations(FINGERS, 2):
+        gaps[f"{a}-{b}"] = min(
+            mujoco.mj_geomDistance(model, data, ga, gb, 0.05, fromto)
+            for ga in geoms[a]
+            for gb in geoms[b]
+        )
+    return gaps
+
+
+def measure(
+    name: str | MaterialObject,
+    duration_s: float = 10.0,
+    fps: float = 10.0,
+    seed: int = 0,
+    min_pixels: int = MIN_PIXELS,
+    render: bool = True,
+    rig_options: dict | None = None,
+) -> ContactReport:
+    """Run the rig on shipped object `name` (or on an object); `render=False`: no DIGIT renders.
+
+    Without renders the contact fraction is the rig's touching flag.
+    """
+    obj = name if isinstance(name, MaterialObject) else make_object(name, CLASSES)
+    name = obj.name
+    rig = SimRig(obj, seed=seed, **(rig_options or {}))
+    rig.open()
+    renderers = {}
+    if render:
+        from neuralfeels_sem.sim.tactile_renderer import DigitRenderer
+
+        renderers = {f: DigitRenderer(obj, seed=seed) for f in FINGERS}
+    model, data = rig.scene.model, rig.scene.data
+    geoms = finger_geoms(model)
+    limits = rig.ik.limits
+    n = int(np.floor(duration_s * fps + 1e-9))
+    contact = np.zeros((n, len(FINGERS)), bool)
+    touching = np.zeros((n, len(FINGERS)), bool)
+    area = np.zeros((n, len(FINGERS)))
+    press = np.zeros((n, len(FINGERS)))
+    pairs = list(itertools.combinations(FINGERS, 2))
+    gaps = {f"{a}-{b}": np.inf for a, b in pairs}
+    gel_distance = dict(gaps)
+    violation, rig_time = 0.0, 0.0
+    touched: list[np.ndarray] = []
+    for i in range(n):
+        start = time.perf_counter()
+        state = rig.state_at(i / fps)
+        rig_time += time.perf_counter() - start
+        touched += [p for p in state.contact_point.values() if p is not None]
+        for j, f in enumerate(FINGERS):
+            touching[i, j] = state.touching.get(f, False)
+            press[i, j] = state.press_m.get(f, 0.0)
+            q = state.joint_positions[4 * j : 4 * j + 4]
+            lo, hi = limits[f][:, 0], limits[f][:, 1]
+            violation = max(violation, float(np.max(np.maximum(lo - q, q - hi))))
+            if render:
+                depth, _ = renderers[f].render_geometry(
+                    state.world_T_object, state.world_T_sensor[f]
+                )
+                px = int(np.count_nonzero((depth > 0) & (depth < GEL_DISTANCE_M)))
+                area[i, j] = px
+                contact[i, j] = px >= min_pixels
+        for pair, gap in finger_gaps(model, data, geoms).items():
+            gaps[pair] = min(gaps[pair], gap)
+        gels = {f: state.world_T_sensor[f] @ [0.0, 0.0, GEL_DISTANCE_M, 1.0] for f in FINGERS}
+        for a, b in pairs:
+            d = float(np.linalg.norm(gels[a][:3] - gels[b][:3]))
+            gel_distance[f"{a}-{b}"] = min(gel_distance[f"{a}-{b}"], d)
+    for renderer in renderers.values():
+        renderer.close()
+    if not render:
+        contact = touching
+    remakes = np.count_nonzero(~contact[:-1] & contact[1:], axis=0)
+    coverage = 0.0
+    if touched:
+        samples, _, _ = obj.sample_surface(4000, seed=0)
+        coverage = float((cKDTree(np.array(touched)).query(samples)[0] < 0.01).mean())
+    return ContactReport(
+        object=name,
+        frames=n,
+        contact_fraction={f: round(float(contact[:, j].mean()), 3) for j, f in enumerate(FINGERS)},
+        remakes={f: int(remakes[j]) for j, f in enumerate(FINGERS)},
+        touching_fraction={
+            f: round(float(touching[:, j].mean()), 3) for j, f in enumerate(FINGERS)
+        },
+        mean_contact_px={
+            f: round(float(area[contact[:, j], j].mean()), 1) if contact[:, j].any() else 0.0
+            for j, f in enumerate(FINGERS)
+        },
+        mean_press_mm={
+            f: round(1000 * float(press[touching[:, j], j].mean()), 2)
+            if touching[:, j].any()
+            else 0.0
+            for j, f in enumerate(FINGERS)
+        },
+        min_finger_gap_m={k: round(float(v), 4) for k, v in gaps.items()},
+        min_gel_distance_m={k: round(v, 4) for k, v in gel_distance.items()},
+        joint_limit_violation_rad=round(max(violation, 0.0), 6),
+        coverage=round(coverage, 3),
+        rig_updates_per_s=round(n / rig_time, 2),
+    )
+
+
+def table(reports: Sequence[ContactReport]) -> str:
+    """Markdown table of contact fractions (index / middle / ring / thumb) per object."""
+    lines = [
+        "| object | contact fraction, index / middle / ring / thumb | re-touches | closest fingers (mm) | closest gel centres (mm) |",
+        "|---|---|---|---|---|",
+    ]
+    for r in reports:
+        frac = " / ".join(f"{r.contact_fraction[f]:.2f}" for f in FINGERS)
+        remakes = " / ".join(str(r.remakes[f]) for f in FINGERS)
+        pair = min(r.min_finger_gap_m, key=r.min_finger_gap_m.get)
+        near = min(r.min_gel_distance_m, key=r.min_gel_distance_m.get)
+        lines.append(
+            f"| `{r.object}` | {frac} | {remakes} | {1000 * r.min_finger_gap_m[pair]:.1f} ({pair})"
+            f" | {1000 * r.min_gel_distance_m[near]:.1f} ({near}) |"
+        )
+    return "\n".join(lines)
+
+
+def main(argv: list[str] | None = None) -> None:
+    parser = argparse.ArgumentParser(description=__doc__.split("\n")[0])
+    parser.add_argument("--objects", nargs="*", default=list(RECIPES))
+    parser.add_argument("--duration", type=float, default=10.0)
+    parser.add_argument("--fps", type=float, default=10.0)
+    parser.add_argument("--seed", type=int, default=0)
+    parser.add_argument("--json", help="also write the reports here")
+    args = parser.parse_args(argv)
+    reports = []
+    for name in args.objects:
+        report = measure(name, args.duration, args.fps, args.seed)
+        print(json.dumps(asdict(report)), flush=True)
+        reports.append(report)
+    print(table(reports))
+    if args.json:
+        with open(args.json, "w") as f:
+            json.dump([asdict(r) for r in reports], f, indent=2)
+
+
+if __name__ == "__main__":
+    main()
