@@ -16,6 +16,9 @@ class EfficientNetClassifierConfig:
     checkpoint: str | None = None  # null = the shipped assets/classifier/classifier.pt
     device: str = "auto"
     min_confidence: float = 0.6
+    # No label when more than this share of the contact lies within edge_px of the border.
+    max_edge_share: float = 0.35  # 1.0 = off
+    edge_px: int = 16
     contact_threshold: float = 30.0
     contact_min_area: float = 0.01
     contact_blur_px: float = 3.0
@@ -32,6 +35,10 @@ class EfficientNetClassifierConfig:
     def __post_init__(self) -> None:
         if not 0.0 <= self.min_confidence <= 1.0:
             raise ValueError(f"classifier.min_confidence={self.min_confidence} must be in [0, 1]")
+        if not 0.0 < self.max_edge_share <= 1.0:
+            raise ValueError(f"classifier.max_edge_share={self.max_edge_share} must be in (0, 1]")
+        if self.edge_px < 0:
+            raise ValueError(f"classifier.edge_px={self.edge_px} must be >= 0")
         if self.contact_threshold <= 0:
             raise ValueError(f"classifier.contact_threshold={self.contact_threshold} must be > 0")
         if not 0.0 < self.contact_min_area < 1.0:

@@ -62,6 +62,21 @@ class ContactGate:
         return self.contact_fraction(image, background) >= self.min_area
 
 
+def edge_share(mask: np.ndarray, edge_px: int) -> float:
+    """Share of a contact mask's pixels within `edge_px` of the image border (0 for no contact).
+
+    A pad pressed at a tilt leaves an imprint cut off by the sensor's edge: a strip along
+    the border with little of the surface's texture in view.
+    """
+    if mask.ndim != 2:
+        raise ValueError(f"contact mask must be (H, W), got {mask.shape}")
+    total = int(mask.sum())
+    if total == 0:
+        return 0.0
+    inner = mask[edge_px:-edge_px, edge_px:-edge_px].sum() if edge_px > 0 else total
+    return float(total - inner) / total
+
+
 def _check_pair(image: np.ndarray, background: np.ndarray) -> None:
     if image.ndim != 3 or image.shape[2] != 3:
         raise ValueError(f"tactile image must be (H, W, 3), got {image.shape}")

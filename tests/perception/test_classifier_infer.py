@@ -14,6 +14,7 @@ from neuralfeels_sem.perception.classifier import MaterialClassifier, OracleClas
 from neuralfeels_sem.perception.classifier.checkpoint import save_checkpoint
 from neuralfeels_sem.perception.classifier.model import build_model
 from neuralfeels_sem.perception.classifier.transforms import IMAGENET_MEAN, IMAGENET_STD
+from neuralfeels_sem.perception.contact import edge_share
 from neuralfeels_sem.perception.touch import NO_LABEL
 from neuralfeels_sem.sensors.frame import TactileReading
 from neuralfeels_sem.sim.digit_geometry import DIGIT_INTRINSICS
@@ -139,3 +140,33 @@ def test_oracle_takes_majority_ground_truth_under_contact() -> None:
 def test_oracle_needs_ground_truth() -> None:
     with pytest.raises(ConfigError, match="needs simulator ground truth"):
         OracleClassifier(CLASSES).classify([reading("thumb", background(0), None)])
+
+
+def test_imprint_cut_off_by_the_sensor_edge_gets_no_label(checkpoint: Path) -> None:
+    """A strip along the border (a tilted pad's edge contact) is abstained, not guessed."""
+    bg = background(0)
+    strip = bg.astype(np.int16)
+    strip[100:220, 222:] += 60  # contact only in the outer 18 columns
+    strip = np.clip(strip, 0, 255).astype(np.uint8)
+    centred = pressed(0, 1, np.random.default_rng(2))
+    kwargs = dict(checkpoint=str(checkpoint), device="cpu", min_confidence=0.0)
+    edge, centre = MaterialClassifier(CLASSES, **kwargs).classify(
+        [reading("index", strip, bg), reading("index", centred, bg)]
+    )
+    assert edge.contact and edge.probs is not None
+    assert edge.low_confidence and edge.label == NO_LABEL and not edge.usable
+    assert centre.usable
+    off = MaterialClassifier(CLASSES, max_edge_share=1.0, **kwargs)
+    assert off.classify([reading("index", strip, bg)])[0].usable
+    with pytest.raises(ValueError, match="max_edge_share"):
+        MaterialClassifier(CLASSES, max_edge_share=0.0)
+
+
+def test_edge_share_counts_border_pixels() -> None:
+    mask = np.zeros((320, 240), bool)
+    assert edge_share(mask, 16) == 0.0
+    mask[150:170, 0:20] = True  # 20 columns, 16 of them in the border band
+    assert edge_share(mask, 16) == pytest.approx(0.8)
+    mask[:] = False
+    mask[100:200, 100:140] = True
+    assert edge_share(mask, 16) == 0.0

@@ -1,6 +1,16 @@
 #!/bin/sh
-# How assets/classifier/classifier.pt was made (CPU, 2 shared cores).
-python run.py task=collect_tactile task.samples_per_class_per_sensor=80
-OMP_NUM_THREADS=1 python run.py task=train_classifier classifier.input_size=64 task.lr=1e-3 task.batch_size=16 task.brightness=0.1 task.contrast=0.1 task.color_gain=0.05 task.max_epochs=30 task.patience=6 task.export_fp16=true device=cpu hydra.run.dir=RUN
-# stopped for time, then resumed in the same run dir to evaluate and export:
-OMP_NUM_THREADS=1 python run.py task=train_classifier classifier.input_size=64 task.lr=1e-3 task.batch_size=16 task.brightness=0.1 task.contrast=0.1 task.color_gain=0.05 task.max_epochs=18 task.patience=6 task.export_fp16=true device=cpu hydra.run.dir=RUN
+# How assets/classifier/classifier.pt was made (CPU, 2 cores, no pretrained weights).
+# collect_stage1
+python run.py task=collect_tactile dataset.root=data/tactile/sim_v2 task.samples_per_class_per_sensor=80
+# stage1 (stopped for time after epoch 10; best.pt kept)
+OMP_NUM_THREADS=2 python run.py task=train_classifier dataset.root=data/tactile/sim_v2 classifier.input_size=112 classifier.crop_px=112 task.batch_size=32 task.export_fp16=true classifier.device=cpu task.lr=1e-3 task.max_epochs=40 task.patience=10 hydra.run.dir=RUN1
+# collect_stage2
+python run.py task=collect_tactile dataset.root=data/tactile/sim_v3 task.samples_per_class_per_sensor=200
+# stage2 (stopped after epoch 9, best epoch 6; best.pt kept)
+OMP_NUM_THREADS=2 python run.py task=train_classifier dataset.root=data/tactile/sim_v3 classifier.input_size=112 classifier.crop_px=112 task.batch_size=32 task.export_fp16=true classifier.device=cpu classifier.weights=RUN1/best.pt task.lr=1e-3 task.max_epochs=30 task.patience=8 hydra.run.dir=RUN2
+# stage3 (early stop after epoch 8, best epoch 4; wrote classifier.pt, report.json)
+OMP_NUM_THREADS=2 python run.py task=train_classifier dataset.root=data/tactile/sim_v3 classifier.input_size=112 classifier.crop_px=112 task.batch_size=32 task.export_fp16=true classifier.device=cpu classifier.weights=RUN2/best.pt task.lr=3e-4 task.max_epochs=8 task.patience=4 hydra.run.dir=RUN3
+# fresh held-out set
+python run.py task=collect_tactile dataset.root=data/tactile/fresh_777 task.samples_per_class_per_sensor=25 seed=777
+# fresh evaluation
+python run.py task=eval_classifier dataset.root=data/tactile/fresh_777 classifier.checkpoint=neuralfeels_sem/assets/classifier/classifier.pt
