@@ -25,3 +25,7 @@ class HardwareError(UserError):
 
 class NoDataError(UserError):
     """A run received no usable data (e.g. the field never saw a point)."""
+
+
+class NumericalError(UserError):
+    """NaN or inf where a finite number is required (a diverged optimisation, a bad pose)."""

@@ -19,7 +19,7 @@ import torch
 from torch import nn
 from tqdm import tqdm
 
-from neuralfeels_sem.errors import ConfigError, NoDataError
+from neuralfeels_sem.errors import ConfigError, NoDataError, NumericalError
 from neuralfeels_sem.mapping.keyframes import KeyframeBuffer, TouchBuffer
 from neuralfeels_sem.mapping.losses import (
     batch_bound,
@@ -202,6 +202,11 @@ class OnlineMapper:
     ) -> dict[str, float]:
         """Ingest one frame, then run steps_per_frame (first time: warmup_steps) steps."""
         pose = frame.world_T_object if world_T_object is None else world_T_object
+        if not np.isfinite(pose).all():
+            raise NumericalError(
+                f"the object pose for frame {frame.index} is not finite (NaN/inf); "
+                "the pose source diverged: try mapping.pose=gt"
+            )
         touch_labels = touch_labels or {}
         for source, pts in self.frame_points(frame, pose).items():
             if source == "camera":
@@ -380,6 +385,12 @@ class OnlineMapper:
             + self.eikonal_weight * losses["eikonal"]
             + self.material_weight * losses["material"]
         )
+        if not torch.isfinite(total):
+            bad = [k for k, v in losses.items() if not torch.isfinite(v)]
+            raise NumericalError(
+                f"mapper loss is not finite at step {self.steps} ({', '.join(bad) or 'total'}); "
+                "lower mapping.optimizer.lr or check the input depth and poses"
+            )
         self.optimizer.zero_grad(set_to_none=True)
         total.backward()
         self.optimizer.step()

@@ -8,7 +8,7 @@ import numpy as np
 import pytest
 import torch
 
-from neuralfeels_sem.errors import ConfigError, NoDataError
+from neuralfeels_sem.errors import ConfigError, NoDataError, NumericalError
 from neuralfeels_sem.fields.optim import FieldAdam
 from neuralfeels_sem.mapping.mapper import OnlineMapper, resolve_pose_source
 from neuralfeels_sem.perception.touch import TouchLabel
@@ -202,3 +202,18 @@ def test_bad_arguments_raise_value_error(bad: dict) -> None:
     args = {"num_classes": 2, **bad}
     with pytest.raises(ValueError, match=next(iter(bad))):
         OnlineMapper(small_field(log2_table_size=10), functools.partial(FieldAdam, lr=1e-3), **args)
+
+
+def test_non_finite_pose_or_loss_is_a_one_line_numerical_error() -> None:
+    frame, labels = sphere_frames(1, touches_per_frame=2)[0]
+    mapper = make_mapper(steps_per_frame=1, warmup_steps=1)
+    bad_pose = frame.world_T_object.copy()
+    bad_pose[0, 3] = np.nan
+    with pytest.raises(NumericalError, match="pose for frame .* not finite"):
+        mapper.add_frame(frame, labels, world_T_object=bad_pose)
+    mapper.add_frame(frame, labels)
+    with torch.no_grad():  # a diverged field: NaN everywhere
+        for p in mapper.field.sdf_head.parameters():
+            p.fill_(float("nan"))
+    with pytest.raises(NumericalError, match="loss is not finite"):
+        mapper.optimize(1)
