@@ -176,6 +176,9 @@ class TrackerConfig:
     damping: float = 1.0e-3  # initial LM damping
     prior_weight: float = 0.01  # pull toward the constant-velocity prediction
     rotation_scale: float = 0.05  # metres per radian in the prior (about the object radius)
+    max_step_m: float = 0.01  # largest translation of one LM step
+    max_step_rad: float = 0.2  # largest rotation of one LM step
+    max_motion_m: float = 0.03  # a result further from the prediction is rejected (diverged)
     max_points_per_source: int = 1000  # camera, and each finger
     source_weights: dict[str, float] = field(
         default_factory=lambda: {"camera": 1.0, "tactile": 1.0}
@@ -191,6 +194,10 @@ class TrackerConfig:
         if self.robust_loss not in ("huber", "cauchy"):
             raise ValueError(
                 f"mapping.tracker.robust_loss={self.robust_loss} must be huber or cauchy"
+            )
+        if min(self.max_step_m, self.max_step_rad, self.max_motion_m) <= 0:
+            raise ValueError(
+                "mapping.tracker max_step_m, max_step_rad and max_motion_m must be > 0"
             )
         if min(self.robust_scale, self.damping, self.rotation_scale) <= 0 or self.prior_weight < 0:
             raise ValueError(

@@ -112,9 +112,18 @@ class PoseTracker:
         max_points_per_source: int = 1000,
         source_weights: Mapping[str, float] | None = None,
         tolerance: float = 1e-7,
+        max_step_m: float = 0.01,
+        max_step_rad: float = 0.2,
+        max_motion_m: float = 0.03,
         seed: int = 0,
     ) -> None:
         """
+        max_step_m, max_step_rad: the largest translation / rotation one LM step may make;
+            a larger step is treated like a failed one (more damping). Far from the surface
+            the field's SDF is clamped and flat, and an undamped step once threw the pose
+            10^27 m away.
+        max_motion_m: a result further than this from the starting (or predicted) pose is
+            rejected as diverged and the prediction kept.
         robust_scale: metres where the robust loss stops being quadratic.
         prior_weight: weight of the squared distance to the predicted pose, relative to the
             mean squared SDF residual (translation in metres, rotation times rotation_scale).
@@ -132,6 +141,9 @@ class PoseTracker:
             "damping": damping,
             "rotation_scale": rotation_scale,
             "tolerance": tolerance,
+            "max_step_m": max_step_m,
+            "max_step_rad": max_step_rad,
+            "max_motion_m": max_motion_m,
         }.items():
             if value <= 0:
                 raise ValueError(f"{name}={value} must be > 0")
@@ -155,6 +167,9 @@ class PoseTracker:
         self.max_points_per_source = max_points_per_source
         self.source_weights = weights
         self.tolerance = float(tolerance)
+        self.max_step_m = float(max_step_m)
+        self.max_step_rad = float(max_step_rad)
+        self.max_motion_m = float(max_motion_m)
         self.generator = torch.Generator().manual_seed(int(seed))
 
     def source_weight(self, source: str) -> float:
@@ -266,6 +281,10 @@ class PoseTracker:
             while mu < 1e8:
                 lhs = h + mu * np.diag(np.diag(h) + 1e-12)
                 delta = -np.linalg.solve(lhs, b)
+                too_far = np.linalg.norm(delta[:3]) > self.max_step_m
+                if too_far or np.linalg.norm(delta[3:]) > self.max_step_rad:
+                    mu *= 10.0
+                    continue
                 cand = se3_exp(delta) @ obj_T_world
                 q_c, r_c, g_c = self._linearise(sdf_fn, cand, pts)
                 info["evaluations"] += 1
@@ -281,4 +300,10 @@ class PoseTracker:
                 break
         info["final_rms_mm"] = 1e3 * float(torch.sqrt((weights * r * r).sum() / weights.sum()))
         info["cost"] = cost
-        return invert_pose(obj_T_world), info
+        result = invert_pose(obj_T_world)
+        moved = float(np.linalg.norm(result[:3, 3] - fallback[:3, 3]))
+        if not np.isfinite(result).all() or moved > self.max_motion_m:
+            info["skipped"] = f"diverged ({moved:.3g} m from the prediction)"
+            log.warning("pose tracking kept the predicted pose: %s", info["skipped"])
+            return fallback, info
+        return result, info

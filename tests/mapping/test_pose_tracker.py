@@ -255,3 +255,28 @@ def test_cli_run_with_known_shape_tracking_reports_the_pose_error(tmp_path) -> N
     assert len(metrics["pose_error_curve"]) == metrics["frames"]
     assert 0.0 <= metrics["pose_error_mm"] < 2.3
     assert (tmp_path / "pose_error.png").stat().st_size > 0
+
+
+def test_runaway_steps_are_damped_and_a_diverged_result_keeps_the_prediction(caplog) -> None:
+    """Far from the surface a clamped field is flat; the tracker must not jump off to infinity."""
+
+    def plane_with_flat_far_field(x: torch.Tensor) -> torch.Tensor:
+        return x[:, 0].clamp(-0.5, 0.5)  # a wall at x = 0, constant beyond +-0.5 m
+
+    world = np.random.default_rng(0).uniform(-0.05, 0.05, (300, 3))
+    world[:, 0] = 0.2  # every point 20 cm in front of the wall
+    init = np.eye(4)
+    # Every LM step is capped at 1 cm, so 10 steps move the object at most 10 cm.
+    est, info = PoseTracker(iterations=10, prior_weight=0.0, max_motion_m=1.0).track(
+        {"camera": world}, plane_with_flat_far_field, init
+    )
+    assert info["skipped"] is None
+    assert 0.005 < np.linalg.norm(est[:3, 3]) <= 0.1 + 1e-9
+    # A result further than max_motion_m from the prediction is not trusted.
+    with caplog.at_level(logging.WARNING):
+        est, info = PoseTracker(iterations=10, prior_weight=0.0, max_motion_m=0.005).track(
+            {"camera": world}, plane_with_flat_far_field, init
+        )
+    assert info["skipped"].startswith("diverged")
+    np.testing.assert_array_equal(est, init)
+    assert "diverged" in caplog.text
