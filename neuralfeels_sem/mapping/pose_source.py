@@ -20,7 +20,7 @@ import torch
 from neuralfeels_sem.errors import ConfigError
 from neuralfeels_sem.mapping.pose_tracker import PoseTracker, constant_velocity
 from neuralfeels_sem.sensors.frame import Frame
-from neuralfeels_sem.utils.geometry import check_pose, invert_pose
+from neuralfeels_sem.utils.geometry import check_pose, invert_pose, orthonormalize_pose
 
 log = logging.getLogger(__name__)
 
@@ -150,6 +150,7 @@ class TrackedPose(PoseSource):
                     self._keep(info["skipped"].split(" (")[0])
                 else:
                     self.tracked_frames += 1
+        pose = orthonormalize_pose(pose)
         self.history = (self.history + [pose])[-2:]
         self.last_estimate = pose
         self.last_frame = frame

@@ -18,7 +18,7 @@ import numpy as np
 import torch
 from torch import Tensor
 
-from neuralfeels_sem.utils.geometry import check_pose, invert_pose
+from neuralfeels_sem.utils.geometry import check_pose, invert_pose, orthonormalize_pose
 
 log = logging.getLogger(__name__)
 
@@ -79,7 +79,7 @@ def constant_velocity(poses: list[np.ndarray]) -> np.ndarray:
     if len(poses) == 1:
         return poses[-1].copy()
     step = invert_pose(poses[-2]) @ poses[-1]
-    return poses[-1] @ step
+    return orthonormalize_pose(poses[-1] @ step)
 
 
 def robust_weights(r: Tensor, loss: str, scale: float) -> tuple[Tensor, Tensor]:

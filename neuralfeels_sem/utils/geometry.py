@@ -55,6 +55,27 @@ def invert_pose(a_T_b: np.ndarray) -> np.ndarray:
     return out
 
 
+def orthonormalize_pose(pose: np.ndarray) -> np.ndarray:
+    """The nearest rigid transform: the rotation block projected onto SO(3) (SVD).
+
+    Products of poses accumulate rounding; a pose whose rotation is slightly off SO(3) is
+    inverted wrongly by `invert_pose` (a transpose), and repeated extrapolation then
+    grows the error geometrically.
+    """
+    pose = np.asarray(pose, dtype=np.float64)
+    if np.abs(pose[:3, :3] @ pose[:3, :3].T - np.eye(3)).max() < 1e-12:
+        return pose.copy()  # already rigid: keep it bit for bit
+    u, _, vt = np.linalg.svd(pose[:3, :3])
+    rotation = u @ vt
+    if np.linalg.det(rotation) < 0:  # a reflection: flip the least significant axis
+        u[:, -1] *= -1
+        rotation = u @ vt
+    out = np.eye(4)
+    out[:3, :3] = rotation
+    out[:3, 3] = pose[:3, 3]
+    return out
+
+
 def check_pose(pose: np.ndarray, name: str) -> None:
     if not isinstance(pose, np.ndarray) or pose.shape != (4, 4):
         raise ValueError(f"{name} must be a 4x4 array, got {getattr(pose, 'shape', type(pose))}")

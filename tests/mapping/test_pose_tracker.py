@@ -280,3 +280,17 @@ def test_runaway_steps_are_damped_and_a_diverged_result_keeps_the_prediction(cap
     assert info["skipped"].startswith("diverged")
     np.testing.assert_array_equal(est, init)
     assert "diverged" in caplog.text
+
+
+def test_repeated_constant_velocity_stays_a_rigid_transform() -> None:
+    """Extrapolating from slightly non-rigid poses used to blow up geometrically (1e27 m)."""
+    a = pose((0, 0, 0), (0.0, 0.0, 0.0))
+    b = pose((0, 0, 1), (0.001, 0.0, 0.0))  # 1 degree and 1 mm per frame
+    b[:3, :3] *= 1.0 + 1e-6  # rounding from many products
+    history = [a, b]
+    for _ in range(300):
+        history = [history[-1], constant_velocity(history)]
+    r = history[-1][:3, :3]
+    assert np.abs(r @ r.T - np.eye(3)).max() < 1e-9
+    assert abs(np.linalg.det(r) - 1.0) < 1e-9
+    assert np.abs(history[-1][:3, 3]).max() < 0.3  # at most 1 mm per frame for 300 frames
