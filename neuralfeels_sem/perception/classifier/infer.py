@@ -204,25 +204,28 @@ class MaterialClassifier:
             self._backgrounds[reading.finger] = reading.image.copy()
         return self._backgrounds.get(reading.finger)
 
-    def in_contact(self, reading: TactileReading) -> bool:
+    def contact_mask(self, reading: TactileReading) -> np.ndarray:
         background = self.background_for(reading)
         if background is None:
             raise ConfigError(
                 f"no background frame for finger {reading.finger}; set classifier.background_dir "
                 "or classifier.first_frame_background=true"
             )
-        return self.gate.in_contact(reading.image, background)
+        return self.gate.mask(reading.image, background)
 
-    def _at_edge(self, reading: TactileReading) -> bool:
-        if self.max_edge_share >= 1.0:
-            return False
-        mask = self.gate.mask(reading.image, self.background_for(reading))
-        return edge_share(mask, self.edge_px) > self.max_edge_share
+    def in_contact(self, reading: TactileReading) -> bool:
+        return float(self.contact_mask(reading).mean()) >= self.gate.min_area
 
     def classify(self, readings: Sequence[TactileReading]) -> list[TouchLabel]:
         """One TouchLabel per reading; frames without contact get no label."""
         self.open()
-        contact = [self.in_contact(r) for r in readings]
+        masks = [self.contact_mask(r) for r in readings]
+        contact = [float(m.mean()) >= self.gate.min_area for m in masks]
+        # An imprint mostly along the sensor's border (a tilted pad's edge) gets no label.
+        at_edge = [
+            self.max_edge_share < 1.0 and edge_share(m, self.edge_px) > self.max_edge_share
+            for m in masks
+        ]
         labels = [TouchLabel(finger=r.finger, contact=c) for r, c in zip(readings, contact)]
         touched = [i for i, c in enumerate(contact) if c]
         if touched:
@@ -234,7 +237,7 @@ class MaterialClassifier:
                 top = int(p.argmax())
                 labels[i].probs = p
                 labels[i].confidence = float(p[top])
-                if p[top] < self.min_confidence or self._at_edge(readings[i]):
+                if p[top] < self.min_confidence or at_edge[i]:
                     labels[i].low_confidence = True
                     labels[i].label = NO_LABEL
                 else:
