@@ -45,6 +45,9 @@ def radians_to_raw(q: np.ndarray, zero_raw: int, signs: np.ndarray) -> np.ndarra
     return np.round(np.asarray(q) / (signs * RAD_PER_COUNT) + zero_raw).astype(np.int64)
 
 
+PING_ATTEMPTS = 3  # pings per motor before it counts as missing
+
+
 class DynamixelHand:
     """16 Dynamixel X-series motors on one serial port (U2D2 or similar)."""
 
@@ -113,8 +116,12 @@ class DynamixelHand:
         self._packet = PacketHandler(2.0)
         missing = []
         for dxl_id in self.motor_ids:
-            _, result, _ = self._packet.ping(self._port, dxl_id)
-            if result != COMM_SUCCESS:
+            # A status packet lost on a busy bus (or a slow host) is not a missing motor.
+            for _ in range(PING_ATTEMPTS):
+                _, result, _ = self._packet.ping(self._port, dxl_id)
+                if result == COMM_SUCCESS:
+                    break
+            else:
                 missing.append(dxl_id)
         if missing:
             self.close()
