@@ -81,9 +81,18 @@ def test_wrong_type_fails_at_compose() -> None:
         compose_config(["seed=abc"])
 
 
-@pytest.mark.parametrize("override", ["seed=-1", "device=tpu", "materials=[plastic]"])
-def test_out_of_range_value_is_a_config_error(override: str) -> None:
-    cfg = compose_config([override])
+@pytest.mark.parametrize(
+    "overrides",
+    [
+        ["seed=-1"],
+        ["device=tpu"],
+        ["materials=[plastic]"],
+        ["task=collect_tactile", "task.edge_press_fraction=1.5"],
+        ["task=collect_tactile", "task.edge_tilt_deg=[40,15]"],
+    ],
+)
+def test_out_of_range_value_is_a_config_error(overrides: list[str]) -> None:
+    cfg = compose_config(overrides)
     with pytest.raises(ConfigError) as info:
         validate_config(cfg)
     assert "\n" not in str(info.value)

@@ -108,6 +108,10 @@ class CollectTactileTaskConfig:
     )
     firmness_spread: float = 0.35  # relative std of the press depth around a finger's firmness
     max_tilt_deg: float = 10.0
+    # Share of presses made with a gel edge (sensor tilted about an axis near that edge), the
+    # strip-shaped imprints the rig's tilted pads make on narrow objects; 0 = all centred.
+    edge_press_fraction: float = 0.0
+    edge_tilt_deg: list[float] = field(default_factory=lambda: [15.0, 40.0])
     min_purity: float = 0.95  # share of contact pixels that must be the labelled material
     min_contact_px: int = 400
     overwrite: bool = False  # false: refuse to write into a non-empty root
@@ -128,6 +132,14 @@ class CollectTactileTaskConfig:
             raise ValueError(f"task.firmness_spread={self.firmness_spread} must be in [0, 1)")
         if not 0.0 <= self.max_tilt_deg < 60.0:
             raise ValueError(f"task.max_tilt_deg={self.max_tilt_deg} must be in [0, 60)")
+        if not 0.0 <= self.edge_press_fraction <= 1.0:
+            raise ValueError(
+                f"task.edge_press_fraction={self.edge_press_fraction} must be in [0, 1]"
+            )
+        if len(self.edge_tilt_deg) != 2 or not 0.0 < self.edge_tilt_deg[0] <= self.edge_tilt_deg[1] < 80.0:
+            raise ValueError(
+                f"task.edge_tilt_deg={self.edge_tilt_deg} must be [low, high] with 0 < low <= high < 80"
+            )
         if not 0.5 <= self.min_purity <= 1.0:
             raise ValueError(f"task.min_purity={self.min_purity} must be in [0.5, 1]")
         if self.min_contact_px < 1:

@@ -44,7 +44,7 @@ from neuralfeels_sem.sim.pyrender_utils import (
     split_by_material,
 )
 from neuralfeels_sem.sim.textures import MicroTexture, compliance_for, specular_for, texture_for
-from neuralfeels_sem.utils.geometry import Intrinsics, check_pose, invert_pose
+from neuralfeels_sem.utils.geometry import Intrinsics, check_pose, invert_pose, rotation_matrix
 
 MAX_RELIEF_M = 0.1e-3  # above every texture's highest relief (fabric threads + fuzz: ~60 um)
 _NOISE_FRAMES, _NOISE_PAD = 8, 64  # noise bank: frames, extra rows/columns for random windows
@@ -366,6 +366,43 @@ def pose_pressing(
     pose[:3, 0], pose[:3, 1], pose[:3, 2] = x, y, z
     pose[:3, 3] = np.asarray(point, np.float64) + n * (GEL_DISTANCE_M - press_m)
     return pose
+
+
+def pose_pressing_edge(
+    point: np.ndarray,
+    normal: np.ndarray,
+    press_m: float,
+    gel_point: tuple[float, float],
+    tilt_rad: float,
+    roll_rad: float = 0.0,
+) -> np.ndarray:
+    """world_T_sensor of a DIGIT tilted so an off-centre gel point presses `press_m` deepest.
+
+    `gel_point` = (x, y) on the gel in metres from its centre (sensor frame). The sensor is
+    turned by `tilt_rad` about the gel-plane axis through that point perpendicular to its
+    offset, lifting the gel centre off the surface: the imprint is a strip along the
+    sensor edge, as a tilted fingertip pad makes on a narrow object.
+    """
+    offset = np.array([gel_point[0], gel_point[1], 0.0])
+    if np.linalg.norm(offset) < 1e-9:
+        raise ValueError("gel_point must be off the gel centre for an edge press")
+    pose = pose_pressing(point, normal, press_m, roll_rad)
+    rotation = pose[:3, :3]
+    pivot = pose[:3, 3] + rotation @ [0.0, 0.0, GEL_DISTANCE_M]  # the pressed gel point
+    pose[:3, 3] -= rotation @ offset  # the gel point, not the centre, sits on `point`
+    axis = rotation @ np.array([-offset[1], offset[0], 0.0])
+    n = np.asarray(normal, np.float64) / np.linalg.norm(normal)
+    best = None
+    for sign in (1.0, -1.0):
+        turn = rotation_matrix(axis, sign * tilt_rad)
+        candidate = np.eye(4)
+        candidate[:3, :3] = turn @ rotation
+        candidate[:3, 3] = pivot + turn @ (pose[:3, 3] - pivot)
+        centre = candidate[:3, :3] @ [0.0, 0.0, GEL_DISTANCE_M] + candidate[:3, 3]
+        lift = float(n @ centre)  # the gel centre must move away from the surface
+        if best is None or lift > best[0]:
+            best = (lift, candidate)
+    return best[1]
 
 
 def contact_sheet(

@@ -10,7 +10,9 @@ finger's DIGIT (same renderer seed as in sensor=sim, so the same background) aga
 random points of that material on primitives and library objects, with a press depth
 drawn around the finger's firmness (the thumb presses less), a random roll about the
 sensor axis and a small tilt; a frame is kept when its contact is large enough and at
-least `min_purity` of the contact pixels are that material.
+least `min_purity` of the contact pixels are that material. A share
+`edge_press_fraction` of presses is made with a gel edge instead (sensor tilted by
+`edge_tilt_deg`), giving the strip imprints of the rig's tilted pads on narrow objects.
 """
 
 from __future__ import annotations
@@ -29,7 +31,7 @@ from tqdm import tqdm
 
 from neuralfeels_sem.errors import ConfigError, DataError
 from neuralfeels_sem.sensors.sim.sim_sensor import finger_seed
-from neuralfeels_sem.sim.digit_geometry import MAX_PENETRATION_M
+from neuralfeels_sem.sim.digit_geometry import GEL_HEIGHT_M, GEL_WIDTH_M, MAX_PENETRATION_M
 from neuralfeels_sem.sim.touch_sources import library_objects, primitive_objects, sample_touch
 from neuralfeels_sem.utils.geometry import rotation_matrix
 
@@ -41,6 +43,20 @@ BACKGROUND_DIR = "_backgrounds"
 def _tilted(normal: np.ndarray, max_tilt_rad: float, rng: np.random.Generator) -> np.ndarray:
     axis = np.cross(normal, rng.normal(size=3))
     return rotation_matrix(axis, rng.uniform(0.0, max_tilt_rad)) @ normal
+
+
+EDGE_BAND_M = 0.002  # an edge press uses a gel point within this of the gel border
+
+
+def _edge_gel_point(rng: np.random.Generator) -> tuple[float, float]:
+    """A random gel point near one of the four gel borders (metres from the centre)."""
+    half_w, half_h = GEL_WIDTH_M / 2.0, GEL_HEIGHT_M / 2.0
+    inset = rng.uniform(0.0, EDGE_BAND_M)
+    if rng.uniform() < 0.5:  # long sides (x = +-half width), where the rig's strips lie
+        return float(rng.choice([-1, 1]) * (half_w - inset)), float(
+            rng.uniform(-half_h, half_h) * 0.7
+        )
+    return float(rng.uniform(-half_w, half_w) * 0.7), float(rng.choice([-1, 1]) * (half_h - inset))
 
 
 def _prepare_root(root: Path, overwrite: bool) -> None:
@@ -59,7 +75,11 @@ def _prepare_root(root: Path, overwrite: bool) -> None:
 
 
 def run(cfg: DictConfig) -> dict:
-    from neuralfeels_sem.sim.tactile_renderer import DigitRenderer, pose_pressing
+    from neuralfeels_sem.sim.tactile_renderer import (
+        DigitRenderer,
+        pose_pressing,
+        pose_pressing_edge,
+    )
 
     task = cfg.task
     class_names = list(cfg.materials)
@@ -101,6 +121,9 @@ def run(cfg: DictConfig) -> dict:
             (root / sensor / material).mkdir(parents=True, exist_ok=True)
     firmness = {f: float(v) / 1000.0 for f, v in task.firmness_mm.items()}
     max_tilt = np.deg2rad(float(task.max_tilt_deg))
+    edge_fraction = float(task.edge_press_fraction)
+    edge_tilt = np.deg2rad(np.asarray(task.edge_tilt_deg, dtype=np.float64))
+    edge_presses = 0
     progress = tqdm(total=sum(len(j) for j in jobs.values()), desc="collect_tactile", unit="img")
     for source_index in sorted(jobs):
         obj = sources[source_index]
@@ -122,12 +145,20 @@ def run(cfg: DictConfig) -> dict:
                             MAX_PENETRATION_M * 0.95,
                         )
                     )
-                    pose = pose_pressing(
-                        touch.point,
-                        _tilted(touch.normal, max_tilt, sample_rng),
-                        press,
-                        sample_rng.uniform(0, 2 * np.pi),
-                    )
+                    normal = _tilted(touch.normal, max_tilt, sample_rng)
+                    roll = sample_rng.uniform(0, 2 * np.pi)
+                    edge = edge_fraction > 0.0 and sample_rng.uniform() < edge_fraction
+                    if edge:
+                        pose = pose_pressing_edge(
+                            touch.point,
+                            normal,
+                            press,
+                            _edge_gel_point(sample_rng),
+                            sample_rng.uniform(*edge_tilt),
+                            roll,
+                        )
+                    else:
+                        pose = pose_pressing(touch.point, normal, press, roll)
                     render = renderers[sensor].render(np.eye(4), pose)
                     contact = int(render.contact_mask.sum())
                     purity = (
@@ -146,6 +177,7 @@ def run(cfg: DictConfig) -> dict:
                 path = root / sensor / class_names[c] / f"{k:05d}.png"
                 cv2.imwrite(str(path), cv2.cvtColor(render.image, cv2.COLOR_RGB2BGR))
                 counts[sensor][class_names[c]] += 1
+                edge_presses += int(edge)
                 used[sensor][class_names[c]][obj.name] += 1
                 progress.update(1)
             for sensor, renderer in renderers.items():
@@ -174,6 +206,9 @@ def run(cfg: DictConfig) -> dict:
         "firmness_mm": dict(task.firmness_mm),
         "firmness_spread": float(task.firmness_spread),
         "max_tilt_deg": float(task.max_tilt_deg),
+        "edge_press_fraction": edge_fraction,
+        "edge_tilt_deg": [float(v) for v in task.edge_tilt_deg],
+        "edge_presses": edge_presses,
         "min_purity": float(task.min_purity),
         "min_contact_px": int(task.min_contact_px),
         "image_size": [320, 240],

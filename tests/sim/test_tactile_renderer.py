@@ -14,7 +14,13 @@ from neuralfeels_sem.sim.backgrounds import (
     resolve_background,
 )
 from neuralfeels_sem.sim.digit_geometry import DIGIT_INTRINSICS, GEL_DISTANCE_M, MAX_PENETRATION_M
-from neuralfeels_sem.sim.tactile_renderer import DigitRenderer, contact_sheet, pose_pressing
+from neuralfeels_sem.perception.contact import edge_share
+from neuralfeels_sem.sim.tactile_renderer import (
+    DigitRenderer,
+    contact_sheet,
+    pose_pressing,
+    pose_pressing_edge,
+)
 from neuralfeels_sem.utils.geometry import (
     backproject,
     invert_pose,
@@ -321,3 +327,35 @@ def test_culling_skips_far_objects_and_never_drops_a_contact(two_material: Digit
         if press > 0:
             assert visible
     assert culled > 0
+
+
+@pytest.mark.parametrize("gel_point", [(0.0085, 0.002), (-0.003, -0.0115)])
+def test_edge_press_puts_the_gel_point_deepest_and_lifts_the_centre(gel_point) -> None:
+    point, normal = np.array([0.01, -0.02, 0.05]), np.array([0.0, 0.6, 0.8])
+    tilt, press = np.deg2rad(25.0), 1.2e-3
+    pose = pose_pressing_edge(point, normal, press, gel_point, tilt, roll_rad=0.3)
+    rotation = pose[:3, :3]
+    np.testing.assert_allclose(rotation @ rotation.T, np.eye(3), atol=1e-12)
+    assert np.linalg.det(rotation) > 0.0
+    # The chosen gel point sits `press` below the surface point, along the normal.
+    gel = transform_points(pose, np.array([[*gel_point, GEL_DISTANCE_M]]))[0]
+    np.testing.assert_allclose(gel, point - normal * press, atol=1e-12)
+    # The sensor axis is tilted by exactly `tilt` from the inward normal ...
+    assert np.isclose(np.arccos(np.clip(rotation[:, 2] @ -normal, -1, 1)), tilt)
+    # ... toward the side that lifts the gel centre: it stands off the surface.
+    centre = transform_points(pose, np.array([[0.0, 0.0, GEL_DISTANCE_M]]))[0]
+    lift = np.linalg.norm(gel_point) * np.sin(tilt) - press
+    assert np.isclose(normal @ (centre - point), lift, atol=1e-12) and lift > 0
+    with pytest.raises(ValueError, match="gel_point"):
+        pose_pressing_edge(point, normal, press, (0.0, 0.0), tilt)
+
+
+def test_edge_press_renders_a_strip_along_the_sensor_border(two_material: DigitRenderer) -> None:
+    world_T_object = np.eye(4)
+    top = np.array([0.0, 0.0, RADIUS])
+    pose = pose_pressing_edge(top, np.array([0.0, 0.0, 1.0]), 1.5e-3, (0.0085, 0.0), 0.5)
+    out = two_material.render(world_T_object, pose)
+    columns = np.nonzero(out.contact_mask.any(axis=0))[0]
+    assert out.contact_mask.sum() > 300
+    assert columns.min() > out.contact_mask.shape[1] // 2  # only the +x (right) side touches
+    assert edge_share(out.contact_mask, 16) > 0.35

@@ -57,6 +57,25 @@ def test_writes_a_balanced_dataset_with_manifest(tmp_path: Path) -> None:
     assert np.abs(image - b).max() > 40
 
 
+def test_edge_presses_give_imprints_cut_off_by_the_sensor_border(tmp_path: Path) -> None:
+    from neuralfeels_sem.perception.contact import ContactGate, edge_share
+
+    root = tmp_path / "edge"
+    run(_cfg(root, "task.edge_press_fraction=1.0", "task.sensors=[middle]"))
+    manifest = json.loads((root / "manifest.json").read_text())
+    assert manifest["edge_presses"] == manifest["total"] == 8
+    assert manifest["edge_tilt_deg"] == [15.0, 40.0]
+    background = cv2.imread(str(root / "_backgrounds" / "middle.png"))
+    gate, shares = ContactGate(), []
+    for path in sorted(root.glob("middle/*/*.png")):
+        mask = gate.mask(cv2.imread(str(path)), background)
+        assert gate.in_contact(cv2.imread(str(path)), background)
+        shares.append(edge_share(mask, 16))
+    # Centred presses put 14 % of the contact in the border band (median, sim_v3);
+    # edge presses most of it.
+    assert np.median(shares) > 0.3
+
+
 def test_refuses_a_non_empty_root_and_unknown_objects(tmp_path: Path) -> None:
     root = tmp_path / "tactile"
     root.mkdir()
