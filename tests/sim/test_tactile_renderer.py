@@ -8,13 +8,13 @@ import trimesh
 
 from neuralfeels_sem.errors import DataError
 from neuralfeels_sem.objects.material_object import IGNORE, MaterialObject
+from neuralfeels_sem.perception.contact import edge_share
 from neuralfeels_sem.sim.backgrounds import (
     load_background,
     procedural_background,
     resolve_background,
 )
 from neuralfeels_sem.sim.digit_geometry import DIGIT_INTRINSICS, GEL_DISTANCE_M, MAX_PENETRATION_M
-from neuralfeels_sem.perception.contact import edge_share
 from neuralfeels_sem.sim.tactile_renderer import (
     DigitRenderer,
     contact_sheet,
