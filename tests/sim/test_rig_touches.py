@@ -1,0 +1,45 @@
+"""The rig's own touches written as a labelled ImageFolder set for task=eval_classifier."""
+
+from __future__ import annotations
+
+import json
+from pathlib import Path
+
+import cv2
+import numpy as np
+import pytest
+
+from neuralfeels_sem.perception.classifier.dataset import load_backgrounds, scan_dataset
+from neuralfeels_sem.sim.rig_touches import collect
+
+
+def test_rig_touches_are_written_with_their_ground_truth_material(tmp_path: Path) -> None:
+    records = collect(tmp_path, ["patched_toy"], seed=0, frames=8)
+    assert records, "the rig touches patched_toy within 0.8 s"
+    written = [r for r in records if r["written"]]
+    files = sorted(tmp_path.glob("*/*/*.png"))
+    files = [f for f in files if f.parent.parent.name != "_backgrounds"]
+    assert len(files) == len(written) > 0
+    for record in written:
+        path = tmp_path / record["finger"] / record["material"]
+        path = path / f"patched_toy_0_{record['frame']:04d}.png"
+        assert cv2.imread(str(path)).shape == (320, 240, 3)
+        assert record["purity"] >= 0.95 and record["contact_px"] > 0
+        assert 0.0 <= record["edge_share"] <= 1.0
+    assert {r["material"] for r in records} <= {"plastic", "fabric"}  # patched_toy's materials
+    assert json.loads((tmp_path / "touches.json").read_text()) == records
+    # task=eval_classifier reads it: ImageFolder layout with each DIGIT's background.
+    samples = scan_dataset(tmp_path, ["plastic", "metal", "fabric", "wood"], False)
+    assert len(samples) == len(written)
+    assert sorted(load_backgrounds(tmp_path)) == ["index", "middle", "ring", "thumb"]
+    # Same seed, same frames: the run is repeatable.
+    again = collect(tmp_path / "again", ["patched_toy"], seed=0, frames=8)
+    assert again == records
+    a = cv2.imread(str(files[0]))
+    b = cv2.imread(str(tmp_path / "again" / files[0].relative_to(tmp_path)))
+    assert np.array_equal(a, b)
+
+
+def test_unknown_object_is_a_one_line_error(tmp_path: Path) -> None:
+    with pytest.raises(ValueError, match="shipped objects"):
+        collect(tmp_path, ["teapot"], frames=1)
