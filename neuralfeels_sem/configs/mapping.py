@@ -87,10 +87,6 @@ class MapperConfig:
     freespace_weight: float = 1.0
     eikonal_weight: float = 0.0
     eikonal_points: int = 256
-    # Solid-interior prior: samples this far behind seen/touched surfaces must have SDF <= 0.
-    interior_samples: int = 0  # per ray (0 = off)
-    interior_range: float = 0.015  # metres behind the surface (must exceed truncation)
-    interior_weight: float = 0.5
     # Space-carving prior (mapping/space_prior.py): points per step in the cube, outside
     # where camera rays passed or outside the hull of observed points, solid elsewhere.
     space_prior_points: int = 512  # 0 = off
@@ -117,7 +113,6 @@ class MapperConfig:
             "free_samples": 0,
             "material_points": 0,
             "eikonal_points": 0,
-            "interior_samples": 0,
             "space_prior_points": 0,
             "window_recent": 1,
             "window_by_loss": 0,
@@ -136,11 +131,6 @@ class MapperConfig:
             raise ValueError(
                 f"mapping.mapper.space_prior_resolution={self.space_prior_resolution} must be >= 8"
             )
-        if self.interior_samples > 0 and self.interior_range <= self.truncation:
-            raise ValueError(
-                f"mapping.mapper.interior_range={self.interior_range} must be > truncation "
-                f"({self.truncation}), or set interior_samples=0"
-            )
         for name in ("camera_free_range", "tactile_free_range"):
             if getattr(self, name) < self.truncation:
                 raise ValueError(
@@ -152,7 +142,6 @@ class MapperConfig:
             "sdf_weight",
             "freespace_weight",
             "eikonal_weight",
-            "interior_weight",
             "space_prior_weight",
             "material_weight",
         ):

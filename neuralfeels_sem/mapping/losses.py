@@ -35,11 +35,6 @@ def freespace_loss(sdf: torch.Tensor, bound: torch.Tensor) -> torch.Tensor:
     return F.relu(-sdf) + F.relu(sdf - bound)
 
 
-def interior_loss(sdf: torch.Tensor) -> torch.Tensor:
-    """Solid-interior prior: points assumed inside must not have a positive SDF."""
-    return F.relu(sdf)
-
-
 def space_prior_loss(sdf: torch.Tensor, sign: torch.Tensor) -> torch.Tensor:
     """Hinge on the SDF's sign: +1 targets (outside) penalise sdf < 0, -1 (solid) sdf > 0."""
     if sign.shape != sdf.shape:

@@ -5,8 +5,8 @@ the frame's `world_T_object`), the camera points become a keyframe, every touch 
 replay buffer (with its label when the classifier's label is usable), then
 `steps_per_frame` optimiser steps run (`warmup_steps` on the first frame with data).
 Each step draws rays from the keyframe window and from all touches, samples along them
-(sampling.py) and minimises the truncated-SDF, free-space, optional eikonal and
-material losses (losses.py).
+(sampling.py) and minimises the truncated-SDF, free-space, space-prior (space_prior.py),
+optional eikonal and material losses (losses.py).
 """
 
 from __future__ import annotations
@@ -25,14 +25,12 @@ from neuralfeels_sem.mapping.losses import (
     batch_bound,
     eikonal_loss,
     freespace_loss,
-    interior_loss,
     material_loss,
     space_prior_loss,
     truncated_sdf_loss,
 )
 from neuralfeels_sem.mapping.sampling import (
     RaySamples,
-    interior_points,
     random_indices,
     sample_along_rays,
     subsample,
@@ -48,7 +46,7 @@ from neuralfeels_sem.perception.touch import TouchLabel
 from neuralfeels_sem.sensors.frame import Frame
 
 POSE_SOURCES = ("gt", "track", "track_known_shape")
-LOSS_KEYS = ("total", "sdf", "freespace", "space", "interior", "eikonal", "material", "points")
+LOSS_KEYS = ("total", "sdf", "freespace", "space", "eikonal", "material", "points")
 
 
 def resolve_pose_source(pose: str) -> str:
@@ -84,9 +82,6 @@ class OnlineMapper:
         freespace_weight: float = 1.0,
         eikonal_weight: float = 0.0,
         eikonal_points: int = 256,
-        interior_samples: int = 0,
-        interior_range: float = 0.015,
-        interior_weight: float = 0.5,
         space_prior_points: int = 0,
         space_prior_weight: float = 0.5,
         space_prior_resolution: int = 64,
@@ -118,7 +113,6 @@ class OnlineMapper:
             "free_samples": free_samples,
             "material_points": material_points,
             "eikonal_points": eikonal_points,
-            "interior_samples": interior_samples,
             "space_prior_points": space_prior_points,
         }
         for name, value in counts.items():
@@ -146,9 +140,6 @@ class OnlineMapper:
         self.freespace_weight = freespace_weight
         self.eikonal_weight = eikonal_weight
         self.eikonal_points = eikonal_points
-        self.interior_samples = interior_samples
-        self.interior_range = float(interior_range)
-        self.interior_weight = interior_weight
         self.space_prior_points = space_prior_points
         self.space_prior_weight = space_prior_weight
         self.space_prior = (
@@ -161,11 +152,6 @@ class OnlineMapper:
             if space_prior_points > 0
             else None
         )
-        if interior_samples > 0 and self.interior_range <= self.truncation:
-            raise ValueError(
-                f"interior_range={interior_range} must exceed truncation={truncation} "
-                "(or set interior_samples=0)"
-            )
         self.material_weight = material_weight
         self.tactile_depth = tactile_depth or TactileDepth("gt")
         self.use_camera_mask = use_camera_mask
@@ -182,14 +168,39 @@ class OnlineMapper:
     # ------------------------------------------------------------------ ingestion
     def frame_points(self, frame: Frame, world_T_object: np.ndarray) -> dict[str, np.ndarray]:
         """Object-frame surface points per source: `camera` and each finger in contact."""
+        return self._frame_points(frame, world_T_object, every_pixel=False)[0]
+
+    def _frame_points(
+        self, frame: Frame, world_T_object: np.ndarray, every_pixel: bool
+    ) -> tuple[dict[str, np.ndarray], np.ndarray | None]:
+        """frame_points and, with `every_pixel`, the points of all valid camera pixels.
+
+        The space prior carves along every pixel's ray, mask or not: for it the camera is
+        back-projected once, without its mask, and the surface points are the pixels inside
+        the mask (the same points, in the same order, as camera_points(..., use_mask=True)).
+        """
         out: dict[str, np.ndarray] = {}
-        if frame.camera is not None:
-            out["camera"] = camera_points(frame.camera, world_T_object, self.use_camera_mask)
+        every = None
+        reading = frame.camera
+        if reading is not None and every_pixel:
+            every = camera_points(reading, world_T_object, use_mask=False)
+            out["camera"] = every
+            if self.use_camera_mask and reading.mask is not None:
+                if reading.mask.shape != reading.depth.shape:
+                    raise ValueError(
+                        f"mask shape {reading.mask.shape} does not match depth shape "
+                        f"{reading.depth.shape}"
+                    )
+                # backproject keeps the finite, positive depths in row-major pixel order.
+                valid = np.isfinite(reading.depth) & (reading.depth > 0)
+                out["camera"] = every[reading.mask.astype(bool)[valid]]
+        elif reading is not None:
+            out["camera"] = camera_points(reading, world_T_object, self.use_camera_mask)
         for finger, reading in frame.tactile.items():
             pts = tactile_points(reading, self.tactile_depth(reading), world_T_object)
             if len(pts):
                 out[finger] = pts
-        return out
+        return out, every
 
     def _tensor(self, array: np.ndarray) -> torch.Tensor:
         return torch.as_tensor(np.asarray(array, dtype=np.float32), device=self.device)
@@ -208,7 +219,8 @@ class OnlineMapper:
                 "the pose source diverged: try mapping.pose=gt"
             )
         touch_labels = touch_labels or {}
-        for source, pts in self.frame_points(frame, pose).items():
+        points, every_pixel = self._frame_points(frame, pose, self.space_prior is not None)
+        for source, pts in points.items():
             if source == "camera":
                 keep = subsample(
                     len(pts), self.camera_points_per_frame, self.generator, replace_if_short=False
@@ -219,8 +231,7 @@ class OnlineMapper:
                 )
                 if self.space_prior is not None:
                     # Every pixel's ray, hand and background included, crosses free space.
-                    ends = camera_points(frame.camera, pose, use_mask=False)
-                    self.space_prior.carve(origin, ends, self.truncation)
+                    self.space_prior.carve(origin, every_pixel, self.truncation)
                     self.space_prior.add_surface(pts[keep.numpy()])
                 self.camera_points_total += len(keep)
             else:
@@ -319,34 +330,18 @@ class OnlineMapper:
             len(touch["labelled_points"]), self.material_points, self.generator, self.device
         )
         x_mat = touch["labelled_points"][pick]
-        x_in = [
-            interior_points(
-                p.surface,
-                p.direction,
-                self.interior_samples,
-                self.truncation,
-                self.interior_range,
-                self.generator,
-            )  # fmt: skip
-            for p, _ in parts
-            if self.interior_samples > 0
-        ]
-        x_in = torch.cat(x_in) if x_in else x_mat[:0]
-        x_sp, sign_sp = x_mat[:0], x_mat[:0, 0]
+        # Space-prior points (cube samples with a target sign), none until the hull exists.
+        x_space, sign_space = x_mat[:0], x_mat[:0, 0]
         if self.space_prior is not None and self.space_prior.ready:
-            x_sp, sign_sp = self.space_prior.sample(
+            x_space, sign_space = self.space_prior.sample(
                 self.space_prior_points, self.truncation, self.generator, self.device
             )
-        x_in = torch.cat([x_in, x_sp])
-        n_interior = len(x_in) - len(x_sp)
-        x = torch.cat([p.x for p, _ in parts] + [x_in, x_mat])
-        n_geo = len(x) - len(x_in) - len(x_mat)
+        x = torch.cat([p.x for p, _ in parts] + [x_space, x_mat])
+        n_geo = len(x) - len(x_space) - len(x_mat)
         # One pass for geometry and material points: the hash grid dominates the cost.
         out = self.field(x)
         zero = torch.zeros((), device=self.device)
-        losses = dict.fromkeys(
-            ("sdf", "freespace", "space", "interior", "eikonal", "material"), zero
-        )
+        losses = dict.fromkeys(("sdf", "freespace", "space", "eikonal", "material"), zero)
         if parts:
             sdf = out["sdf"][:n_geo]
             s = torch.cat([p.s for p, _ in parts])
@@ -368,19 +363,16 @@ class OnlineMapper:
                 losses["eikonal"] = eikonal_loss(grad).mean()
             if camera:
                 self._update_keyframe_losses(camera, per_sample[: len(camera[0])].detach())
-        if n_interior:
-            losses["interior"] = interior_loss(out["sdf"][n_geo : n_geo + n_interior]).mean()
-        if len(x_sp):
-            sdf_sp = out["sdf"][n_geo + n_interior : n_geo + len(x_in)]
-            losses["space"] = space_prior_loss(sdf_sp, sign_sp).mean()
+        if len(x_space):
+            sdf_space = out["sdf"][n_geo : n_geo + len(x_space)]
+            losses["space"] = space_prior_loss(sdf_space, sign_space).mean()
         if len(x_mat):
-            logits = out["material_logits"][n_geo + len(x_in) :]
+            logits = out["material_logits"][n_geo + len(x_space) :]
             labels, weights = touch["labelled_labels"][pick], touch["labelled_weights"][pick]
             losses["material"] = material_loss(logits, labels, weights).mean()
         total = (
             self.sdf_weight * losses["sdf"]
             + self.freespace_weight * losses["freespace"]
-            + self.interior_weight * losses["interior"]
             + self.space_prior_weight * losses["space"]
             + self.eikonal_weight * losses["eikonal"]
             + self.material_weight * losses["material"]

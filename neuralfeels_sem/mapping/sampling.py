@@ -24,7 +24,6 @@ class RaySamples:
     free: torch.Tensor  # (N,) bool, True for free-space samples
     ray: torch.Tensor  # (N,) long, index of the sample's ray
     surface: torch.Tensor  # (R, 3) the rays' surface points
-    direction: torch.Tensor  # (R, 3) unit ray directions (toward and through the surface)
 
     def __len__(self) -> int:
         return int(self.x.shape[0])
@@ -74,35 +73,7 @@ def sample_along_rays(
         free=is_free.reshape(-1),
         ray=ray.reshape(-1),
         surface=surface,
-        direction=direction,
     )
-
-
-def interior_points(
-    surface: torch.Tensor,
-    direction: torch.Tensor,
-    samples_per_ray: int,
-    truncation: float,
-    interior_range: float,
-    generator: torch.Generator,
-) -> torch.Tensor:
-    """Points behind each surface point along its ray, at depths in (truncation, interior_range].
-
-    surface, direction (R, 3) -> (R * samples_per_ray, 3). Used by the solid-interior prior:
-    just behind a seen or touched surface a solid object is usually still solid.
-    """
-    if surface.ndim != 2 or surface.shape[1] != 3 or direction.shape != surface.shape:
-        raise ValueError(
-            f"surface and direction must be (R, 3), got {tuple(surface.shape)}, {tuple(direction.shape)}"
-        )
-    if not 0 < truncation < interior_range:
-        raise ValueError(f"need 0 < truncation ({truncation}) < interior_range ({interior_range})")
-    r = surface.shape[0]
-    u = torch.rand((r, samples_per_ray), generator=generator, dtype=surface.dtype).to(
-        surface.device
-    )
-    depth = truncation + u * (interior_range - truncation)
-    return (surface.unsqueeze(1) + depth.unsqueeze(2) * direction.unsqueeze(1)).reshape(-1, 3)
 
 
 def random_indices(

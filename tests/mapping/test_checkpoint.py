@@ -19,7 +19,9 @@ from tests.mapping.synthetic import small_field, sphere_frames
 FRAMES = sphere_frames(6, touches_per_frame=2)
 
 
-def make_mapper(init_seed: int = 0, log2_table_size: int = 12) -> OnlineMapper:
+def make_mapper(
+    init_seed: int = 0, log2_table_size: int = 12, space_prior_points: int = 0
+) -> OnlineMapper:
     torch.manual_seed(init_seed)
     return OnlineMapper(
         small_field(log2_table_size=log2_table_size),
@@ -32,6 +34,8 @@ def make_mapper(init_seed: int = 0, log2_table_size: int = 12) -> OnlineMapper:
         material_points=16,
         window_recent=2,
         window_by_loss=1,
+        space_prior_points=space_prior_points,
+        space_prior_resolution=16,
         seed=3,
     )
 
@@ -41,11 +45,12 @@ def feed(mapper: OnlineMapper, frames) -> None:
         mapper.add_frame(frame, labels)
 
 
-def test_resume_after_kill_matches_uninterrupted_run(tmp_path) -> None:
-    reference = make_mapper()
+@pytest.mark.parametrize("space_prior_points", [0, 64])
+def test_resume_after_kill_matches_uninterrupted_run(tmp_path, space_prior_points: int) -> None:
+    reference = make_mapper(space_prior_points=space_prior_points)
     feed(reference, FRAMES)
 
-    first = make_mapper()
+    first = make_mapper(space_prior_points=space_prior_points)
     feed(first, FRAMES[:3])
     path = tmp_path / "checkpoint.pt"
     save_checkpoint(path, first, frame_index=2, extra={"matching_curve": [[2, 0.2, 51.0]]})
@@ -54,7 +59,7 @@ def test_resume_after_kill_matches_uninterrupted_run(tmp_path) -> None:
     torch.manual_seed(99)
     random.seed(99)
     np.random.seed(99)
-    resumed = make_mapper(init_seed=7)
+    resumed = make_mapper(init_seed=7, space_prior_points=space_prior_points)
     info = load_checkpoint(path, resumed)
     assert info == {"frame_index": 2, "extra": {"matching_curve": [[2, 0.2, 51.0]]}}
     feed(resumed, FRAMES[info["frame_index"] + 1 :])
@@ -78,6 +83,9 @@ def test_resume_after_kill_matches_uninterrupted_run(tmp_path) -> None:
             )
             assert same, (key, name)
     assert reference.keyframes.losses == resumed.keyframes.losses
+    if space_prior_points:
+        assert np.array_equal(reference.space_prior.carved, resumed.space_prior.carved)
+        assert np.array_equal(reference.space_prior.hull_points, resumed.space_prior.hull_points)
 
 
 def test_kill_during_write_keeps_the_last_good_checkpoint(tmp_path, monkeypatch) -> None:

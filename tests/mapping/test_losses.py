@@ -11,7 +11,6 @@ from neuralfeels_sem.mapping.losses import (
     batch_bound,
     eikonal_loss,
     freespace_loss,
-    interior_loss,
     material_loss,
     truncated_sdf_loss,
 )
@@ -72,8 +71,3 @@ def test_losses_pass_a_numeric_gradient_check() -> None:
     logits = torch.rand(5, 3, generator=g, dtype=torch.float64).requires_grad_(True)
     labels, weights = torch.tensor([0, 1, 2, 1, 0]), torch.rand(5, generator=g, dtype=torch.float64)
     assert torch.autograd.gradcheck(lambda v: material_loss(v, labels, weights).sum(), (logits,))
-
-
-def test_interior_loss_penalises_only_positive_sdf() -> None:
-    sdf = torch.tensor([-0.01, 0.0, 0.002, 0.03])
-    assert torch.allclose(interior_loss(sdf), torch.tensor([0.0, 0.0, 0.002, 0.03]))

@@ -2,6 +2,7 @@
 
 from __future__ import annotations
 
+import dataclasses
 import functools
 
 import numpy as np
@@ -11,6 +12,7 @@ import torch
 from neuralfeels_sem.errors import ConfigError, NoDataError, NumericalError
 from neuralfeels_sem.fields.optim import FieldAdam
 from neuralfeels_sem.mapping.mapper import OnlineMapper, resolve_pose_source
+from neuralfeels_sem.perception.pointcloud import camera_points
 from neuralfeels_sem.perception.touch import TouchLabel
 from neuralfeels_sem.sensors.frame import Frame
 from neuralfeels_sem.utils.geometry import rotation_matrix
@@ -57,6 +59,33 @@ def test_frame_points_use_the_given_pose() -> None:
     assert np.abs(np.linalg.norm(stored, axis=1) - RADIUS).mean() > 2e-3
 
 
+@pytest.mark.parametrize("use_camera_mask", [True, False])
+def test_one_unmasked_back_projection_gives_the_masked_surface_points(
+    use_camera_mask: bool,
+) -> None:
+    """add_frame back-projects the camera once for both the surface and the carving rays."""
+    frame, _ = sphere_frames(1, touches_per_frame=0)[0]
+    camera = frame.camera
+    # Invalid depths inside and outside the mask, and a mask that cuts through the sphere.
+    depth = camera.depth.copy()
+    v, u = np.nonzero(depth > 0)
+    depth[v[::7], u[::7]] = np.nan
+    depth[v[3::11], u[3::11]] = 0.0
+    mask = np.zeros(depth.shape, dtype=bool)
+    mask[:, : depth.shape[1] // 2] = True
+    frame = dataclasses.replace(frame, camera=dataclasses.replace(camera, depth=depth, mask=mask))
+    mapper = make_mapper(space_prior_points=64, use_camera_mask=use_camera_mask)
+    pose = frame.world_T_object
+    points, every = mapper._frame_points(frame, pose, every_pixel=True)
+    assert np.array_equal(every, camera_points(frame.camera, pose, use_mask=False))
+    assert np.array_equal(points["camera"], camera_points(frame.camera, pose, use_camera_mask))
+    assert np.array_equal(points["camera"], mapper.frame_points(frame, pose)["camera"])
+    if use_camera_mask:
+        assert 0 < len(points["camera"]) < len(every)
+    else:
+        assert points["camera"] is every
+
+
 def test_counts_losses_and_warmup() -> None:
     frames = sphere_frames(3, touches_per_frame=2)
     mapper = make_mapper(
@@ -67,16 +96,7 @@ def test_counts_losses_and_warmup() -> None:
         "middle", contact=True, label=1, confidence=0.3, low_confidence=True
     )
     losses = mapper.add_frame(frames[0][0], labels)
-    assert set(losses) == {
-        "total",
-        "sdf",
-        "freespace",
-        "space",
-        "interior",
-        "eikonal",
-        "material",
-        "points",
-    }
+    assert set(losses) == {"total", "sdf", "freespace", "space", "eikonal", "material", "points"}
     assert losses["points"] == 128 * 6 + 64 * 6 + 256
     assert losses["material"] > 0 and losses["eikonal"] == 0
     for frame, labels in frames[1:]:

@@ -5,12 +5,7 @@ from __future__ import annotations
 import pytest
 import torch
 
-from neuralfeels_sem.mapping.sampling import (
-    interior_points,
-    random_indices,
-    sample_along_rays,
-    subsample,
-)
+from neuralfeels_sem.mapping.sampling import random_indices, sample_along_rays, subsample
 
 
 def rays(r: int = 50) -> tuple[torch.Tensor, torch.Tensor, torch.Tensor]:
@@ -71,23 +66,3 @@ def test_subsample_and_random_indices() -> None:
     idx = random_indices(7, 1000, g, torch.device("cpu"))
     assert idx.min() >= 0 and idx.max() <= 6 and len(torch.unique(idx)) == 7
     assert len(random_indices(0, 10, g, torch.device("cpu"))) == 0
-
-
-def test_interior_points_lie_behind_the_surface_within_range() -> None:
-    surface = torch.tensor([[0.0, 0.0, 0.0], [0.01, 0.02, 0.03]])
-    direction = torch.tensor([[0.0, 0.0, 1.0], [1.0, 0.0, 0.0]])
-    g = torch.Generator().manual_seed(0)
-    pts = interior_points(surface, direction, 50, 0.005, 0.015, g).reshape(2, 50, 3)
-    depth = ((pts - surface[:, None]) * direction[:, None]).sum(-1)
-    off_ray = (pts - surface[:, None] - depth[..., None] * direction[:, None]).norm(dim=-1)
-    assert off_ray.max() < 1e-7
-    assert depth.min() > 0.005 and depth.max() <= 0.015 + 1e-7
-    assert depth.max() - depth.min() > 0.008  # spread over the range, not a single depth
-
-
-def test_interior_points_reject_a_range_inside_the_band() -> None:
-    g = torch.Generator().manual_seed(0)
-    with pytest.raises(ValueError, match="interior_range"):
-        interior_points(torch.zeros(1, 3), torch.tensor([[0.0, 0.0, 1.0]]), 2, 0.005, 0.004, g)
-    with pytest.raises(ValueError, match="must be"):
-        interior_points(torch.zeros(3), torch.zeros(3), 2, 0.005, 0.015, g)
