@@ -14,6 +14,7 @@ import logging
 from pathlib import Path
 
 from hydra import compose
+from hydra.errors import ConfigCompositionException
 from hydra.utils import instantiate
 from omegaconf import DictConfig, OmegaConf
 
@@ -47,9 +48,16 @@ def load_run_config(run_dir: Path) -> DictConfig:
     # Re-compose from the run's own overrides so the config gets its schemas (typed nodes) back.
     overrides_file = run_dir / ".hydra" / "overrides.yaml"
     overrides = list(OmegaConf.load(overrides_file)) if overrides_file.is_file() else []
-    return compose(
-        config_name="config", overrides=[o for o in overrides if not o.startswith("hydra.")]
-    )
+    try:
+        return compose(
+            config_name="config", overrides=[o for o in overrides if not o.startswith("hydra.")]
+        )
+    except ConfigCompositionException as exc:  # e.g. an option removed since the run
+        reason = str(exc).strip().splitlines()[0]
+        raise ConfigError(
+            f"run_dir={run_dir}: its overrides no longer compose ({reason}); "
+            "re-run it or edit .hydra/overrides.yaml"
+        ) from exc
 
 
 def run(cfg: DictConfig) -> dict:

@@ -108,6 +108,24 @@ def test_task_eval_refuses_a_directory_that_is_not_a_run(tmp_path: Path) -> None
     assert "Traceback" not in result.stderr
 
 
+def test_task_eval_names_overrides_that_no_longer_compose(tmp_path: Path) -> None:
+    from hydra import initialize_config_dir
+
+    from neuralfeels_sem.errors import ConfigError
+    from neuralfeels_sem.tasks.eval import load_run_config
+    from tests.helpers import CONF_DIR, register_configs
+
+    register_configs()
+    (tmp_path / ".hydra").mkdir()
+    (tmp_path / ".hydra" / "config.yaml").write_text("task:\n  name: map\n")
+    (tmp_path / ".hydra" / "overrides.yaml").write_text("- mapping.mapper.interior_samples=4\n")
+    (tmp_path / "checkpoint.pt").write_bytes(b"")
+    with initialize_config_dir(config_dir=str(CONF_DIR), version_base="1.3"):
+        with pytest.raises(ConfigError, match="no longer compose") as info:
+            load_run_config(tmp_path)
+    assert "\n" not in str(info.value) and "interior_samples" in str(info.value)
+
+
 def test_resume_continues_from_the_checkpoint(tiny_run: Path, tmp_path: Path) -> None:
     result = run_cli(
         [
