@@ -120,9 +120,11 @@ def test_task_eval_names_overrides_that_no_longer_compose(tmp_path: Path) -> Non
     (tmp_path / ".hydra" / "config.yaml").write_text("task:\n  name: map\n")
     (tmp_path / ".hydra" / "overrides.yaml").write_text("- mapping.mapper.interior_samples=4\n")
     (tmp_path / "checkpoint.pt").write_bytes(b"")
-    with initialize_config_dir(config_dir=str(CONF_DIR), version_base="1.3"):
-        with pytest.raises(ConfigError, match="no longer compose") as info:
-            load_run_config(tmp_path)
+    with (
+        initialize_config_dir(config_dir=str(CONF_DIR), version_base="1.3"),
+        pytest.raises(ConfigError, match="no longer compose") as info,
+    ):
+        load_run_config(tmp_path)
     assert "\n" not in str(info.value) and "interior_samples" in str(info.value)
 
 
