@@ -136,7 +136,10 @@ class CollectTactileTaskConfig:
             raise ValueError(
                 f"task.edge_press_fraction={self.edge_press_fraction} must be in [0, 1]"
             )
-        if len(self.edge_tilt_deg) != 2 or not 0.0 < self.edge_tilt_deg[0] <= self.edge_tilt_deg[1] < 80.0:
+        if (
+            len(self.edge_tilt_deg) != 2
+            or not 0.0 < self.edge_tilt_deg[0] <= self.edge_tilt_deg[1] < 80.0
+        ):
             raise ValueError(
                 f"task.edge_tilt_deg={self.edge_tilt_deg} must be [low, high] with 0 < low <= high < 80"
             )
