@@ -153,6 +153,7 @@ def run(cfg: DictConfig) -> dict:
         std,
         device,
         resume_path(task.resume, run_dir),
+        checkpoint_meta={"crop_px": crop_px},
     )
 
     best = load_checkpoint(run_dir / BEST)

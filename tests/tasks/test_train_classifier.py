@@ -71,6 +71,15 @@ def test_training_writes_all_outputs(trained: Path) -> None:
     )
 
 
+def test_every_checkpoint_records_the_contact_crop(data: Path, tmp_path: Path) -> None:
+    # Inference preprocesses as training did only if the checkpoint says so: best.pt must
+    # be usable as classifier.checkpoint on its own (e.g. while training still runs).
+    result = train(data, tmp_path, "task.max_epochs=1", "classifier.crop_px=64")
+    assert result.returncode == 0, result.stderr[-3000:]
+    for name in ("classifier.pt", "best.pt"):
+        assert load_checkpoint(tmp_path / name).meta["crop_px"] == 64, name
+
+
 def test_rerun_in_the_same_run_dir_resumes_from_last_checkpoint(tmp_path: Path) -> None:
     assert resume_path("auto", tmp_path) is None
     (tmp_path / "last.pt").write_bytes(b"")

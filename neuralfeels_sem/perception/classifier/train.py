@@ -69,8 +69,13 @@ def train(
     std: list[float],
     device: torch.device,
     resume_from: Path | None = None,
+    checkpoint_meta: dict | None = None,
 ) -> TrainResult:
-    """Train in place; the best model (by validation accuracy) ends up in run_dir/best.pt."""
+    """Train in place; the best model (by validation accuracy) ends up in run_dir/best.pt.
+
+    `checkpoint_meta` goes into every saved checkpoint's meta (e.g. `crop_px`, which
+    inference needs to preprocess as training did, so best.pt is usable on its own).
+    """
     if len(train_images) < 2 or len(val_images) < 1:
         raise DataError(
             f"too few images to train ({len(train_images)} train, {len(val_images)} validation); collect more"
@@ -88,7 +93,7 @@ def train(
         state = _restore(resume_from, model, optimizer, generator)
         log.info("resuming from %s after epoch %d", resume_from, state["epoch"])
     resumed_from = state["epoch"]
-    meta = {"settings": asdict(settings)}
+    meta = {**(checkpoint_meta or {}), "settings": asdict(settings)}
 
     n = len(train_images)
     steps = (n + settings.batch_size - 1) // settings.batch_size
