@@ -112,3 +112,29 @@ def test_batchnorm_recalibration_uses_current_weights() -> None:
     torch.testing.assert_close(model[1].running_mean, features.mean(dim=(0, 2, 3)))
     torch.testing.assert_close(model[1].running_var, features.var(dim=(0, 2, 3), unbiased=True))
     assert model[1].momentum == 0.1 and not model.training
+
+
+def test_gated_report_counts_what_the_mapper_would_label() -> None:
+    from neuralfeels_sem.perception.classifier.evaluate import gated_report
+
+    y = np.array([0, 1, 2, 3, 0])
+    probs = np.array(
+        [
+            [0.9, 0.1, 0.0, 0.0],  # confident, right, inside
+            [0.5, 0.4, 0.1, 0.0],  # not confident
+            [0.0, 0.05, 0.95, 0.0],  # confident, right, at the edge
+            [0.85, 0.0, 0.0, 0.15],  # confident, wrong, inside
+            [0.7, 0.3, 0.0, 0.0],  # confident at 0.6 only
+        ]
+    )
+    edges = np.array([0.1, 0.1, 0.8, 0.2, 0.0])
+    gated = gated_report(y, probs, edges, 0.8, 0.5)
+    assert gated["kept_count"] == 2 and gated["kept_share"] == pytest.approx(0.4)
+    assert gated["accuracy_kept"] == pytest.approx(0.5)
+    assert gated["left_out_low_confidence"] == 2 and gated["left_out_edge"] == 1
+    no_edge_check = gated_report(y, probs, edges, 0.6, 1.0)
+    assert no_edge_check["kept_count"] == 4 and no_edge_check["accuracy_kept"] == pytest.approx(
+        0.75
+    )
+    with pytest.raises(ValueError, match="lengths differ"):
+        gated_report(y[:2], probs, edges, 0.8, 0.5)

@@ -15,14 +15,54 @@ from neuralfeels_sem.perception.classifier.report import (
 )
 
 
+def predict_probs_in_batches(
+    predict, images: np.ndarray, batch_size: int, desc: str = "classifying"
+) -> np.ndarray:
+    """(N, C) probabilities for (N, S, S, 3) images, `predict` mapping a batch to (B, C)."""
+    out = []
+    for start in tqdm(range(0, len(images), batch_size), desc=desc, unit="batch", leave=False):
+        out.append(np.asarray(predict(images[start : start + batch_size]), dtype=np.float32))
+    return np.concatenate(out) if out else np.zeros((0, 0), dtype=np.float32)
+
+
 def predict_in_batches(
     predict, images: np.ndarray, batch_size: int, desc: str = "classifying"
 ) -> np.ndarray:
     """Class indices for (N, S, S, 3) images, `predict` mapping a batch to (B, C) probabilities."""
-    out = []
-    for start in tqdm(range(0, len(images), batch_size), desc=desc, unit="batch", leave=False):
-        out.append(predict(images[start : start + batch_size]).argmax(1))
-    return np.concatenate(out) if out else np.zeros(0, dtype=np.int64)
+    probs = predict_probs_in_batches(predict, images, batch_size, desc)
+    return probs.argmax(1) if len(probs) else np.zeros(0, dtype=np.int64)
+
+
+def gated_report(
+    y_true: np.ndarray,
+    probs: np.ndarray,
+    edge_shares: np.ndarray,
+    min_confidence: float,
+    max_edge_share: float,
+) -> dict:
+    """Accuracy on the touches the mapper would label, and how many it would leave out.
+
+    A touch is labelled when its top probability reaches `min_confidence` and at most
+    `max_edge_share` of its contact lies in the sensor's border band (1.0 = no edge check).
+    """
+    if not len(y_true) == len(probs) == len(edge_shares):
+        raise ValueError(
+            f"lengths differ: {len(y_true)} labels, {len(probs)} predictions, "
+            f"{len(edge_shares)} edge shares"
+        )
+    confident = probs.max(1) >= min_confidence
+    inside = (edge_shares <= max_edge_share) | (max_edge_share >= 1.0)
+    kept = confident & inside
+    correct = probs.argmax(1) == y_true
+    return {
+        "min_confidence": float(min_confidence),
+        "max_edge_share": float(max_edge_share),
+        "kept_share": float(kept.mean()) if len(kept) else 0.0,
+        "kept_count": int(kept.sum()),
+        "accuracy_kept": float(correct[kept].mean()) if kept.any() else None,
+        "left_out_low_confidence": int((~confident).sum()),
+        "left_out_edge": int((confident & ~inside).sum()),
+    }
 
 
 def write_report(report: dict, out_dir: Path, title: str) -> Path:
