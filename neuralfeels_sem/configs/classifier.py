@@ -15,9 +15,9 @@ class EfficientNetClassifierConfig:
     class_names: list[str] = field(default_factory=list)
     checkpoint: str | None = None  # null = the shipped assets/classifier/classifier.pt
     device: str = "auto"
-    min_confidence: float = 0.6
+    min_confidence: float = 0.8
     # No label when more than this share of the contact lies within edge_px of the border.
-    max_edge_share: float = 0.35  # 1.0 = off
+    max_edge_share: float = 0.5  # 1.0 = off
     edge_px: int = 16
     contact_threshold: float = 30.0
     contact_min_area: float = 0.01

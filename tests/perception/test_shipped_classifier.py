@@ -37,11 +37,14 @@ def test_shipped_checkpoint_loads_with_its_provenance() -> None:
 def test_shipped_checkpoint_keeps_its_accuracy_on_fresh_sim_data(tmp_path: Path) -> None:
     """A new sim test set (another seed than the training data) through task=eval_classifier."""
     root = tmp_path / "fresh"
+    # The same kind of presses as the shipped model's training and test data.
+    trained_on = json.loads((ASSET_DIR / "manifest.json").read_text())["dataset"]
     collect = run_cli(
         [
             "task=collect_tactile",
             f"dataset.root={root}",
             "task.samples_per_class_per_sensor=5",
+            f"task.edge_press_fraction={trained_on.get('edge_press_fraction', 0.0)}",
             "seed=777",
             f"hydra.run.dir={tmp_path / 'collect'}",
         ]

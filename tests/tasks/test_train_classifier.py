@@ -105,7 +105,7 @@ def test_eval_classifier_writes_the_same_report(data: Path, trained: Path, tmp_p
     assert report["test_count"] == 48 and set(report["per_sensor"]) == set(SENSORS)
     assert sum(map(sum, report["confusion"])) == 48
     gated = report["gated"]  # the synthetic set has _backgrounds/: the mapper's view is scored
-    assert gated["max_edge_share"] == 0.35 and 0 <= gated["kept_count"] <= 48
+    assert gated["max_edge_share"] == 0.5 and 0 <= gated["kept_count"] <= 48
     left_out = gated["left_out_low_confidence"] + gated["left_out_edge"]
     assert gated["kept_count"] + left_out == 48
     assert (

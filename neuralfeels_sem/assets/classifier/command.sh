@@ -14,3 +14,12 @@ OMP_NUM_THREADS=2 python run.py task=train_classifier dataset.root=data/tactile/
 python run.py task=collect_tactile dataset.root=data/tactile/fresh_777 task.samples_per_class_per_sensor=25 seed=777
 # fresh evaluation
 python run.py task=eval_classifier dataset.root=data/tactile/fresh_777 classifier.checkpoint=neuralfeels_sem/assets/classifier/classifier.pt
+# collect_stage4: centred and edge presses (half the presses with a gel border, tilt 15-40 deg), seed 100
+python run.py task=collect_tactile dataset.root=data/tactile/sim_v4 task.samples_per_class_per_sensor=300 task.edge_press_fraction=0.5 seed=100
+# stage4 (12 epochs from stage 3's classifier.pt; epoch 9's best.pt kept, see manifest.json "selection")
+OMP_NUM_THREADS=2 python run.py task=train_classifier dataset.root=data/tactile/sim_v4 classifier.input_size=112 classifier.crop_px=112 task.batch_size=32 task.export_fp16=true classifier.device=cpu classifier.weights=neuralfeels_sem/assets/classifier/classifier.pt task.lr=3e-4 task.max_epochs=12 task.patience=4 hydra.run.dir=RUN4
+# held-out sets: fresh edge presses, the rig's own touches (seed 5 picked the epoch; seed 0 = the map runs' frames)
+python run.py task=collect_tactile dataset.root=data/tactile/fresh_778_edge task.samples_per_class_per_sensor=25 task.edge_press_fraction=0.5 seed=778
+python -m neuralfeels_sem.sim.rig_touches data/tactile/rig_seed5 --seed 5
+python -m neuralfeels_sem.sim.rig_touches data/tactile/rig_seed0 --seed 0
+python run.py task=eval_classifier dataset.root=data/tactile/rig_seed0
