@@ -93,6 +93,12 @@ class MapperConfig:
     space_prior_weight: float = 0.5
     space_prior_resolution: int = 64  # carving voxels per side
     material_weight: float = 0.1
+    # A labelled touch contradicted by its neighbours (>= min_neighbours labelled touches
+    # within radius metres, fewer than min_agreement of them with its label) is not used
+    # for the material loss. 0 = off.
+    label_vote_radius: float = 0.0
+    label_vote_min_neighbours: int = 3
+    label_vote_min_agreement: float = 0.25
     window_recent: int = 4
     window_by_loss: int = 4
     max_keyframes: int = 200
@@ -117,6 +123,8 @@ class MapperConfig:
             "window_recent": 1,
             "window_by_loss": 0,
             "max_keyframes": 1,
+            "label_vote_radius": 0.0,
+            "label_vote_min_neighbours": 1,
         }
         for name, low in at_least.items():
             if getattr(self, name) < low:
@@ -127,6 +135,10 @@ class MapperConfig:
             )
         if self.truncation <= 0:
             raise ValueError(f"mapping.mapper.truncation={self.truncation} must be > 0")
+        if not 0.0 < self.label_vote_min_agreement <= 1.0:
+            raise ValueError(
+                f"mapping.mapper.label_vote_min_agreement={self.label_vote_min_agreement} must be in (0, 1]"
+            )
         if self.space_prior_resolution < 8:
             raise ValueError(
                 f"mapping.mapper.space_prior_resolution={self.space_prior_resolution} must be >= 8"

@@ -38,6 +38,23 @@ class KeyframeBuffer:
     def __len__(self) -> int:
         return len(self.points)
 
+    def _outvoted_points(self) -> torch.Tensor:
+        """Per stored point: does its touch get outvoted by its labelled neighbours?"""
+        labels = torch.stack([t[0] for t in self._labels])
+        centroids = torch.stack([p.mean(0) for p in self._points])
+        mine = labels >= 0
+        outvoted = torch.zeros(len(labels), dtype=torch.bool, device=labels.device)
+        outvoted[mine] = outvoted_touches(
+            centroids[mine],
+            labels[mine],
+            self.vote_radius,
+            self.vote_min_neighbours,
+            self.vote_min_agreement,
+        )
+        self.num_outvoted = int(outvoted.sum())
+        sizes = torch.tensor([len(p) for p in self._points], device=labels.device)
+        return torch.repeat_interleave(outvoted, sizes)
+
     @property
     def num_points(self) -> int:
         return sum(int(p.shape[0]) for p in self.points)
@@ -94,6 +111,34 @@ class KeyframeBuffer:
         self.losses = [float(v) for v in state["losses"]]
 
 
+def outvoted_touches(
+    centroids: torch.Tensor,
+    labels: torch.Tensor,
+    radius: float,
+    min_neighbours: int,
+    min_agreement: float,
+) -> torch.Tensor:
+    """(T,) bool: labelled touches that their labelled neighbours contradict.
+
+    A touch is outvoted when at least `min_neighbours` other touches lie within `radius`
+    (centroid distance) and fewer than `min_agreement` of them carry its label: one
+    confident misclassification among many consistent touches would otherwise paint its
+    own patch. A touch with few neighbours, e.g. on a small patch of another material
+    with touches of its own, is kept.
+    """
+    if centroids.ndim != 2 or centroids.shape[1] != 3 or labels.shape != centroids.shape[:1]:
+        raise ValueError(
+            f"expected (T, 3) centroids and (T,) labels, got {centroids.shape}, {labels.shape}"
+        )
+    if len(labels) == 0 or radius <= 0.0:
+        return torch.zeros(len(labels), dtype=torch.bool, device=labels.device)
+    near = torch.cdist(centroids, centroids) < radius
+    near.fill_diagonal_(False)
+    neighbours = near.sum(1)
+    agree = (near & (labels[None, :] == labels[:, None])).sum(1)
+    return (neighbours >= min_neighbours) & (agree < min_agreement * neighbours)
+
+
 class TouchBuffer:
     """Every touch: a fixed number of contact points each, the sensor axis, label and weight.
 
@@ -101,8 +146,18 @@ class TouchBuffer:
     contact patch has fewer pixels), so uniform sampling over points is uniform over touches.
     """
 
-    def __init__(self, device: torch.device) -> None:
+    def __init__(
+        self,
+        device: torch.device,
+        vote_radius: float = 0.0,
+        vote_min_neighbours: int = 3,
+        vote_min_agreement: float = 0.25,
+    ) -> None:
         self.device = device
+        self.vote_radius = float(vote_radius)
+        self.vote_min_neighbours = int(vote_min_neighbours)
+        self.vote_min_agreement = float(vote_min_agreement)
+        self.num_outvoted = 0
         self._points: list[torch.Tensor] = []
         self._axes: list[torch.Tensor] = []
         self._labels: list[torch.Tensor] = []
@@ -144,11 +199,30 @@ class TouchBuffer:
                     "weights": torch.zeros(0, device=self.device),
                 }
             labelled = cat["labels"] >= 0
+            if self.vote_radius > 0.0 and self.num_labelled > 0:
+                labelled = labelled & ~self._outvoted_points()
             cat["labelled_points"] = cat["points"][labelled]
             cat["labelled_labels"] = cat["labels"][labelled]
             cat["labelled_weights"] = cat["weights"][labelled]
             self._cat = cat
         return self._cat
+
+    def _outvoted_points(self) -> torch.Tensor:
+        """Per stored point: does its touch get outvoted by its labelled neighbours?"""
+        labels = torch.stack([t[0] for t in self._labels])
+        centroids = torch.stack([p.mean(0) for p in self._points])
+        mine = labels >= 0
+        outvoted = torch.zeros(len(labels), dtype=torch.bool, device=labels.device)
+        outvoted[mine] = outvoted_touches(
+            centroids[mine],
+            labels[mine],
+            self.vote_radius,
+            self.vote_min_neighbours,
+            self.vote_min_agreement,
+        )
+        self.num_outvoted = int(outvoted.sum())
+        sizes = torch.tensor([len(p) for p in self._points], device=labels.device)
+        return torch.repeat_interleave(outvoted, sizes)
 
     @property
     def num_points(self) -> int:

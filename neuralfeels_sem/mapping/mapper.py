@@ -86,6 +86,9 @@ class OnlineMapper:
         space_prior_weight: float = 0.5,
         space_prior_resolution: int = 64,
         material_weight: float = 0.01,
+        label_vote_radius: float = 0.0,
+        label_vote_min_neighbours: int = 3,
+        label_vote_min_agreement: float = 0.25,
         window_recent: int = 4,
         window_by_loss: int = 4,
         max_keyframes: int = 200,
@@ -156,7 +159,18 @@ class OnlineMapper:
         self.tactile_depth = tactile_depth or TactileDepth("gt")
         self.use_camera_mask = use_camera_mask
         self.keyframes = KeyframeBuffer(max_keyframes, window_recent, window_by_loss)
-        self.touches = TouchBuffer(self.device)
+        if label_vote_radius < 0 or label_vote_min_neighbours < 1:
+            raise ValueError(
+                f"label_vote_radius={label_vote_radius} must be >= 0 and "
+                f"label_vote_min_neighbours={label_vote_min_neighbours} >= 1"
+            )
+        if not 0.0 < label_vote_min_agreement <= 1.0:
+            raise ValueError(
+                f"label_vote_min_agreement={label_vote_min_agreement} must be in (0, 1]"
+            )
+        self.touches = TouchBuffer(
+            self.device, label_vote_radius, label_vote_min_neighbours, label_vote_min_agreement
+        )
         # The mapper's own generator: sampling is repeatable and resumable bit for bit.
         self.generator = torch.Generator().manual_seed(int(seed))
         self.frames_seen = 0
@@ -273,6 +287,7 @@ class OnlineMapper:
             "tactile_points": self.tactile_points_total,
             "touches": self.touches.num_touches,
             "labelled_touches": self.touches.num_labelled,
+            "outvoted_touches": self.touches.num_outvoted,
             "optimizer_steps": self.steps,
         }
 

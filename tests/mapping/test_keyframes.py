@@ -2,6 +2,7 @@
 
 from __future__ import annotations
 
+import pytest
 import torch
 
 from neuralfeels_sem.mapping.keyframes import KeyframeBuffer, TouchBuffer
@@ -55,3 +56,38 @@ def test_touch_buffer_keeps_labelled_subset_and_round_trips() -> None:
     copy.load_state_dict(touches.state_dict())
     for key, value in copy.tensors().items():
         assert torch.equal(value, cat[key]), key
+
+
+def test_label_vote_drops_a_touch_its_neighbours_contradict() -> None:
+    from neuralfeels_sem.mapping.keyframes import outvoted_touches
+
+    axis = torch.tensor([0.0, 0.0, 1.0])
+    touches = TouchBuffer(torch.device("cpu"), vote_radius=0.01, vote_min_neighbours=3)
+    centre = torch.tensor([0.02, 0.0, 0.0])
+    for k in range(5):  # five fabric touches around one point
+        offset = torch.tensor([0.002 * k, 0.001, 0.0])
+        touches.add(centre + offset + torch.zeros(4, 3), axis, label=2, weight=0.9)
+    touches.add(centre + torch.zeros(4, 3), axis, label=0, weight=0.95)  # one wrong plastic
+    far = torch.tensor([-0.05, 0.0, 0.0])
+    touches.add(far + torch.zeros(4, 3), axis, label=0, weight=0.9)  # plastic elsewhere
+    touches.add(torch.ones(4, 3), axis, label=-1, weight=0.0)  # unlabelled: never votes
+    cat = touches.tensors()
+    assert touches.num_outvoted == 1
+    assert cat["labelled_points"].shape == (6 * 4, 3)
+    assert (cat["labelled_labels"] == 0).sum() == 4  # only the far plastic touch is left
+    # Off by default: every labelled touch is used.
+    plain = TouchBuffer(torch.device("cpu"))
+    plain.load_state_dict(touches.state_dict())
+    assert plain.tensors()["labelled_points"].shape == (7 * 4, 3) and plain.num_outvoted == 0
+    # A touch with too few neighbours, or enough agreeing ones, is kept.
+    c = torch.tensor([[0.0, 0, 0], [0.001, 0, 0], [0.0, 0.001, 0], [0.001, 0.001, 0]])
+    assert not outvoted_touches(c[:3], torch.tensor([0, 2, 2]), 0.01, 3, 0.25).any()
+    assert not outvoted_touches(c, torch.tensor([0, 0, 2, 2]), 0.01, 3, 0.25).any()
+    assert outvoted_touches(c, torch.tensor([0, 2, 2, 2]), 0.01, 3, 0.25).tolist() == [
+        True,
+        False,
+        False,
+        False,
+    ]
+    with pytest.raises(ValueError, match="centroids"):
+        outvoted_touches(c[:, :2], torch.tensor([0, 0, 2, 2]), 0.01, 3, 0.25)
