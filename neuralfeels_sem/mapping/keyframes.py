@@ -38,23 +38,6 @@ class KeyframeBuffer:
     def __len__(self) -> int:
         return len(self.points)
 
-    def _outvoted_points(self) -> torch.Tensor:
-        """Per stored point: does its touch get outvoted by its labelled neighbours?"""
-        labels = torch.stack([t[0] for t in self._labels])
-        centroids = torch.stack([p.mean(0) for p in self._points])
-        mine = labels >= 0
-        outvoted = torch.zeros(len(labels), dtype=torch.bool, device=labels.device)
-        outvoted[mine] = outvoted_touches(
-            centroids[mine],
-            labels[mine],
-            self.vote_radius,
-            self.vote_min_neighbours,
-            self.vote_min_agreement,
-        )
-        self.num_outvoted = int(outvoted.sum())
-        sizes = torch.tensor([len(p) for p in self._points], device=labels.device)
-        return torch.repeat_interleave(outvoted, sizes)
-
     @property
     def num_points(self) -> int:
         return sum(int(p.shape[0]) for p in self.points)
