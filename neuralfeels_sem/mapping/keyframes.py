@@ -140,7 +140,7 @@ class TouchBuffer:
         self.vote_radius = float(vote_radius)
         self.vote_min_neighbours = int(vote_min_neighbours)
         self.vote_min_agreement = float(vote_min_agreement)
-        self.num_outvoted = 0
+        self._num_outvoted = 0  # set with the cached tensors; read through num_outvoted
         self._points: list[torch.Tensor] = []
         self._axes: list[torch.Tensor] = []
         self._labels: list[torch.Tensor] = []
@@ -182,6 +182,7 @@ class TouchBuffer:
                     "weights": torch.zeros(0, device=self.device),
                 }
             labelled = cat["labels"] >= 0
+            self._num_outvoted = 0
             if self.vote_radius > 0.0 and self.num_labelled > 0:
                 labelled = labelled & ~self._outvoted_points()
             cat["labelled_points"] = cat["points"][labelled]
@@ -203,9 +204,15 @@ class TouchBuffer:
             self.vote_min_neighbours,
             self.vote_min_agreement,
         )
-        self.num_outvoted = int(outvoted.sum())
+        self._num_outvoted = int(outvoted.sum())
         sizes = torch.tensor([len(p) for p in self._points], device=labels.device)
         return torch.repeat_interleave(outvoted, sizes)
+
+    @property
+    def num_outvoted(self) -> int:
+        """Labelled touches left out of the material loss by the vote, as of the latest touch."""
+        self.tensors()
+        return self._num_outvoted
 
     @property
     def num_points(self) -> int:

@@ -71,6 +71,7 @@ def test_label_vote_drops_a_touch_its_neighbours_contradict() -> None:
     far = torch.tensor([-0.05, 0.0, 0.0])
     touches.add(far + torch.zeros(4, 3), axis, label=0, weight=0.9)  # plastic elsewhere
     touches.add(torch.ones(4, 3), axis, label=-1, weight=0.0)  # unlabelled: never votes
+    assert touches.num_outvoted == 1  # current without asking for the tensors first
     cat = touches.tensors()
     assert touches.num_outvoted == 1
     assert cat["labelled_points"].shape == (6 * 4, 3)
