@@ -91,6 +91,8 @@ def test_wrong_type_fails_at_compose() -> None:
         ["task=collect_tactile", "task.edge_tilt_deg=[40,15]"],
         ["mapping.mapper.label_vote_min_agreement=0"],
         ["mapping.mapper.label_vote_radius=-0.01"],
+        ["sensor.alternate_axis=[0,0,0]"],
+        ["sensor.alternate_every_s=0"],
     ],
 )
 def test_out_of_range_value_is_a_config_error(overrides: list[str]) -> None:

@@ -64,6 +64,10 @@ class SimSensorConfig:
     rotation_axis: list[float] = field(default_factory=lambda: [0.0, 0.0, 1.0])  # world frame
     rotation_speed_deg_s: float = 30.0
     wobble_deg: float = 4.0
+    # A second axis (world frame) the object turns about in turn with rotation_axis,
+    # alternate_every_s each; null: one axis, so only a band round the object is touched.
+    alternate_axis: list[float] | None = field(default_factory=lambda: [0.0, 1.0, 0.0])
+    alternate_every_s: float = 5.0
     gait_period_s: float = 1.2  # one contact-lift-move-touch cycle per finger
     contact_fraction: float = 0.75  # share of the cycle in contact
     # Press depth per finger in mm; the paper saw weaker thumb contact.
@@ -87,6 +91,14 @@ class SimSensorConfig:
             raise ValueError(
                 f"sensor.rotation_axis={self.rotation_axis} must be a non-zero [x, y, z]"
             )
+        if self.alternate_axis is not None and (
+            len(self.alternate_axis) != 3 or sum(v * v for v in self.alternate_axis) < 1e-12
+        ):
+            raise ValueError(
+                f"sensor.alternate_axis={self.alternate_axis} must be null or a non-zero [x, y, z]"
+            )
+        if self.alternate_every_s <= 0:
+            raise ValueError(f"sensor.alternate_every_s={self.alternate_every_s} must be > 0")
         if self.gait_period_s <= 0:
             raise ValueError(f"sensor.gait_period_s={self.gait_period_s} must be > 0")
         if not 0.0 < self.contact_fraction < 1.0:

@@ -146,6 +146,8 @@ class SimRig:
         world_T_palm: np.ndarray | None = None,
         world_T_camera: np.ndarray | None = None,
         seed: int = 0,
+        alternate_axis: Sequence[float] | None = None,
+        alternate_every_s: float = 5.0,
     ) -> None:
         unknown = set(fingers) - set(FINGERS)
         if unknown or not fingers:
@@ -155,6 +157,8 @@ class SimRig:
         self.obj = obj
         self.fingers = tuple(f for f in FINGERS if f in fingers)
         self.axis = np.asarray(axis, np.float64)
+        self.alternate_axis = None if alternate_axis is None else np.asarray(alternate_axis, float)
+        self.alternate_every_s = float(alternate_every_s)
         self.speed_deg_s, self.wobble_deg = speed_deg_s, wobble_deg
         self.press = dict(DEFAULT_PRESS_M if press_depth_m is None else press_depth_m)
         for f in self.fingers:
@@ -188,7 +192,13 @@ class SimRig:
         self._probe.qpos[:] = NOMINAL_Q
         self._probe_ik = FingertipIK(self.scene.model, self._probe, iterations=15)
         self.trajectory = ObjectTrajectory(
-            self.centre, self.axis, self.speed_deg_s, wobble_deg=self.wobble_deg, seed=self.seed
+            self.centre,
+            self.axis,
+            self.speed_deg_s,
+            wobble_deg=self.wobble_deg,
+            seed=self.seed,
+            alternate_axis=self.alternate_axis,
+            alternate_every_s=self.alternate_every_s,
         )
         self.policy = GaitingPolicy(
             self.trajectory,
@@ -213,8 +223,8 @@ class SimRig:
             for f in FINGERS
         }
         self._touched: dict[str, deque] = {f: deque(maxlen=MEMORY) for f in FINGERS}
-        self._libraries: dict[str, np.ndarray] = {}
-        self._profile: tuple[int, np.ndarray, np.ndarray] | None = None
+        self._libraries: dict[tuple[str, int], np.ndarray] = {}
+        self._profiles: dict[int, tuple[int, np.ndarray, np.ndarray]] = {}  # per segment
         self.scene.set_state(self.q, self.trajectory.pose(0.0))
 
     @staticmethod
@@ -228,14 +238,13 @@ class SimRig:
         """Between the middle finger's and the thumb's natural pads, clear of the palm.
 
         The object's lowest point must clear the palm face: its half extent along the palm
-        normal if it turns about that normal (else its bounding radius), plus wobble room.
+        normal if it only turns about that normal (else its bounding radius), plus wobble room.
         """
         up, across = palm[:3, 0], palm[:3, 1]
-        axis = self.axis / np.linalg.norm(self.axis)
+        axes = [self.axis] + ([] if self.alternate_axis is None else [self.alternate_axis])
+        upright = all(abs(a @ up) > 0.99 * np.linalg.norm(a) for a in axes)
         verts = np.asarray(self.obj.mesh.vertices)
-        half_up = (
-            float(np.abs(verts @ up).max()) if abs(axis @ up) > 0.99 else self.obj.bounds_radius
-        )
+        half_up = float(np.abs(verts @ up).max()) if upright else self.obj.bounds_radius
         wobble_room = np.sin(np.deg2rad(self.wobble_deg)) * self.obj.bounds_radius
         middle = self.nominal["middle"][0]
         centre = 0.5 * (middle + self.nominal["thumb"][0])
@@ -266,7 +275,7 @@ class SimRig:
         i = FINGERS.index(finger)
         joints = slice(4 * i, 4 * i + 4)
         box = SAMPLE_BOX[finger]
-        library = self._library(finger)
+        library = self._library(finger, self.trajectory.segment(touchdown_s))
         memory = self._touched[finger]
         tries = SAMPLE_TRIES if memory else FIRST_TRIES  # nothing to start from yet
         if len(library) >= MIN_LIBRARY:
@@ -364,7 +373,7 @@ class SimRig:
         self._touched[finger].append(candidates[0][-1])  # nearly: look around there next time
         return None
 
-    def _library(self, finger: str) -> np.ndarray:
+    def _library(self, finger: str, segment: int = 0) -> np.ndarray:
         """Postures of the finger's SAMPLE_BOX whose gel comes near the object as it turns.
 
         The object sweeps a solid of revolution about the rotation axis; at each height
@@ -372,13 +381,15 @@ class SimRig:
         Postures whose gel centre lies in that band (widened by LIBRARY_INSIDE_M and
         LIBRARY_OUTSIDE_M) and whose pad faces the axis are kept: on a narrow object only a
         few percent of the box touch it, about three times as many of these. Built once per
-        finger, deterministic.
+        finger and trajectory segment (an alternating axis sweeps another solid each
+        time), deterministic.
         """
-        if finger in self._libraries:
-            return self._libraries[finger]
-        if self._profile is None:
-            pose = self.trajectory.pose(0.0)
-            axis = self.trajectory.axis
+        key = (finger, segment)
+        if key in self._libraries:
+            return self._libraries[key]
+        axis = self.trajectory.segment_axis(segment)
+        if segment not in self._profiles:
+            pose = self.trajectory.pose(self.trajectory.segment_start(segment))
             rel = np.asarray(self.obj.mesh.vertices) @ pose[:3, :3].T + pose[:3, 3] - self.centre
             height = rel @ axis
             radial = rel - np.outer(height, axis)
@@ -388,14 +399,15 @@ class SimRig:
             outer = np.zeros((hb.max() - hb.min() + 1, 24))
             cells = (hb - hb.min(), np.clip(az, 0, 23).astype(int))
             np.maximum.at(outer, cells, np.linalg.norm(radial, axis=1))
-            self._profile = (hb.min(), outer.min(axis=1), outer.max(axis=1))
-        low, r_in, r_out = self._profile
+            self._profiles[segment] = (hb.min(), outer.min(axis=1), outer.max(axis=1))
+        low, r_in, r_out = self._profiles[segment]
         box = SAMPLE_BOX[finger]
-        rng = np.random.default_rng([self.seed, FINGERS.index(finger), 7])
+        # segment 0 keeps the single-axis seed, so one-axis runs are unchanged
+        stream = [self.seed, FINGERS.index(finger), 7] + ([segment] if segment else [])
+        rng = np.random.default_rng(stream)
         postures = rng.uniform(box[:, 0], box[:, 1], (LIBRARY_TRIES, 4))
         model, data = self.scene.model, mujoco.MjData(self.scene.model)
         i = FINGERS.index(finger)
-        axis = self.trajectory.axis
         keep = []
         for q in postures:
             data.qpos[4 * i : 4 * i + 4] = q
@@ -410,8 +422,8 @@ class SimRig:
                 continue  # beyond the object's ends along the axis, or facing away
             if r_in[b] - LIBRARY_INSIDE_M <= r <= r_out[b] + LIBRARY_OUTSIDE_M:
                 keep.append(q)
-        self._libraries[finger] = np.array(keep).reshape(-1, 4)
-        return self._libraries[finger]
+        self._libraries[key] = np.array(keep).reshape(-1, 4)
+        return self._libraries[key]
 
     def _press_probe(self, finger: str, press: float) -> bool:
         """Slide the probe's finger along its pad until the object reaches `press` into the gel.

@@ -3,7 +3,8 @@
 `task=collect_tactile` presses each DIGIT against chosen material points; the rig's
 finger-gaiting policy instead touches wherever its fingers land, often with tilted pads
 whose imprints are strips along the sensor edge. This runs the rig on shipped objects
-exactly as `sensor=sim` does (same seeds, so the same DIGIT backgrounds and frames) and
+exactly as `sensor=sim` does by default (same motion and seeds, so the same DIGIT
+backgrounds and frames) and
 writes every frame in contact (the classifier's contact gate) whose ground-truth
 material is at least `min_purity` one class, in the ImageFolder layout
 `<root>/<sensor>/<material>/<object>_<seed>_<frame>.png` that `task=eval_classifier`
@@ -27,6 +28,7 @@ import cv2
 import numpy as np
 from tqdm import tqdm
 
+from neuralfeels_sem.configs.sensor_sim import SimSensorConfig
 from neuralfeels_sem.objects.library import make_object
 from neuralfeels_sem.objects.procedural import RECIPES
 from neuralfeels_sem.perception.contact import ContactGate, edge_share
@@ -62,9 +64,18 @@ def collect(
     gate = ContactGate()
     records: list[dict] = []
     progress = tqdm(total=len(objects) * frames, desc="rig touches", unit="frame")
+    motion = SimSensorConfig()  # the default sensor=sim motion
     for name in objects:
         obj = make_object(name, tuple(classes))
-        rig = SimRig(obj, seed=seed)
+        rig = SimRig(
+            obj,
+            axis=motion.rotation_axis,
+            speed_deg_s=motion.rotation_speed_deg_s,
+            wobble_deg=motion.wobble_deg,
+            alternate_axis=motion.alternate_axis,
+            alternate_every_s=motion.alternate_every_s,
+            seed=seed,
+        )
         rig.open()
         renderers = {f: DigitRenderer(obj, seed=finger_seed(seed, f)) for f in FINGERS}
         try:

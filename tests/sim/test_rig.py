@@ -111,3 +111,18 @@ def test_fingers_do_not_run_into_each_other(run) -> None:
         worst = min(worst, *finger_gaps(hand.model, hand.data, geoms).values())
     # Links and DIGIT bodies of different fingers at most touch (run-time tolerance 1 mm).
     assert worst >= -OVERLAP_TOLERANCE_M - 1e-4
+
+
+def test_an_alternate_axis_brings_the_poles_round_to_the_fingers() -> None:
+    # About z alone the fingers touch a band round the sphere; turning about y in turn
+    # brings its top and bottom (the poles of z) round to them.
+    obj = two_material_sphere(0.04)
+    polar = {}
+    for name, alternate in (("one axis", None), ("alternating", (0.0, 1.0, 0.0))):
+        rig = SimRig(obj, wobble_deg=0.0, alternate_axis=alternate, alternate_every_s=1.5)
+        states = [rig.state_at(i / 10) for i in range(60)]
+        assert np.mean([sum(s.touching.values()) for s in states[10:]]) >= 2.0, name
+        points = np.array([p for s in states for p in s.contact_point.values() if p is not None])
+        latitude = np.degrees(np.arcsin(np.abs(points[:, 2]) / np.linalg.norm(points, axis=1)))
+        polar[name] = np.percentile(latitude, 90)
+    assert polar["alternating"] > polar["one axis"] + 15.0, polar

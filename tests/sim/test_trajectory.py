@@ -37,3 +37,49 @@ def test_wobble_stays_small_and_is_seeded() -> None:
 def test_bad_axis_is_a_value_error() -> None:
     with pytest.raises(ValueError, match="axis"):
         ObjectTrajectory(np.zeros(3), (0.0, 0.0, 0.0))
+
+
+def _angle_deg(rot: np.ndarray) -> float:
+    return float(np.degrees(np.arccos(np.clip((np.trace(rot) - 1) / 2, -1, 1))))
+
+
+def test_alternate_axis_turns_about_each_axis_in_turn_and_is_continuous() -> None:
+    z, x = np.array([0.0, 0.0, 1.0]), np.array([1.0, 0.0, 0.0])
+    traj = ObjectTrajectory(
+        np.zeros(3),
+        z,
+        speed_deg_s=30.0,
+        wobble_deg=0.0,
+        sway_m=0.0,
+        alternate_axis=x,
+        alternate_every_s=2.0,
+    )
+    rot = lambda t: traj.pose(t)[:3, :3]  # noqa: E731
+    # 0-2 s about z, 2-4 s about x, 4-6 s about z again: each stretch turns 60 degrees
+    # about its own axis, whatever came before
+    for start, axis in ((0.0, z), (2.0, x), (4.0, z)):
+        step = rot(start + 1.5) @ rot(start).T
+        np.testing.assert_allclose(step @ axis, axis, atol=1e-12)
+        assert _angle_deg(step) == pytest.approx(45.0, abs=1e-6)
+    # no jump at a switch
+    for switch in (2.0, 4.0):
+        assert _angle_deg(rot(switch + 1e-6) @ rot(switch - 1e-6).T) < 1e-3
+    # the second stretch turns the object's top (z) away from the vertical
+    top = rot(3.9) @ z
+    assert np.degrees(np.arccos(top[2])) == pytest.approx(57.0, abs=1e-6)
+    assert [traj.segment(t) for t in (0.0, 1.99, 2.0, 5.0)] == [0, 0, 1, 2]
+
+
+def test_one_axis_is_unchanged_by_the_alternation_defaults() -> None:
+    a = ObjectTrajectory(np.zeros(3), (0, 0, 1), wobble_deg=4.0, seed=3)
+    b = ObjectTrajectory(np.zeros(3), (0, 0, 1), wobble_deg=4.0, seed=3, alternate_every_s=0.5)
+    for t in (0.0, 3.0, 9.7):
+        np.testing.assert_allclose(a.pose(t), b.pose(t))
+    assert a.segment(100.0) == 0
+
+
+def test_bad_alternate_axis_or_period_is_a_value_error() -> None:
+    with pytest.raises(ValueError, match="alternate_axis"):
+        ObjectTrajectory(np.zeros(3), (0, 0, 1), alternate_axis=(0.0, 0.0, 0.0))
+    with pytest.raises(ValueError, match="alternate_every_s"):
+        ObjectTrajectory(np.zeros(3), (0, 0, 1), alternate_axis=(1, 0, 0), alternate_every_s=0.0)

@@ -38,6 +38,8 @@ class SimSensor(Sensor):
         fingers: DIGITs to render (the others stay bent back, out of the way).
         camera: render the RGB-D camera.
         rotation_axis, rotation_speed_deg_s, wobble_deg: the object's motion.
+        alternate_axis, alternate_every_s: the object turns about rotation_axis and
+            alternate_axis in turn, alternate_every_s seconds each (None: one axis).
         gait_period_s, contact_fraction: finger gaiting cycle.
         firmness_mm: press depth per finger (thumb weaker by default, as in the paper).
         tactile: DigitRenderer options (background, noise_std, texture_scale, ...).
@@ -56,6 +58,8 @@ class SimSensor(Sensor):
         rotation_axis: Sequence[float] = (0.0, 0.0, 1.0),
         rotation_speed_deg_s: float = 30.0,
         wobble_deg: float = 4.0,
+        alternate_axis: Sequence[float] | None = (0.0, 1.0, 0.0),
+        alternate_every_s: float = 5.0,
         gait_period_s: float = 1.2,
         contact_fraction: float = 0.75,
         firmness_mm: dict[str, float] | None = None,
@@ -79,6 +83,8 @@ class SimSensor(Sensor):
         self.camera_enabled = bool(camera)
         self.rotation_axis = tuple(float(v) for v in rotation_axis)
         self.rotation_speed, self.wobble_deg = float(rotation_speed_deg_s), float(wobble_deg)
+        self.alternate_axis = None if alternate_axis is None else tuple(map(float, alternate_axis))
+        self.alternate_every_s = float(alternate_every_s)
         self.gait_period_s, self.contact_fraction = float(gait_period_s), float(contact_fraction)
         firmness = dict(DEFAULT_FIRMNESS_MM)
         firmness.update(firmness_mm or {})
@@ -115,6 +121,8 @@ class SimSensor(Sensor):
             axis=self.rotation_axis,
             speed_deg_s=self.rotation_speed,
             wobble_deg=self.wobble_deg,
+            alternate_axis=self.alternate_axis,
+            alternate_every_s=self.alternate_every_s,
             press_depth_m={f: v / 1000.0 for f, v in self.firmness_mm.items()},
             period_s=self.gait_period_s,
             contact_fraction=self.contact_fraction,
