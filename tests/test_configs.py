@@ -91,6 +91,7 @@ def test_wrong_type_fails_at_compose() -> None:
         ["task=collect_tactile", "task.edge_tilt_deg=[40,15]"],
         ["mapping.mapper.label_vote_min_agreement=0"],
         ["mapping.mapper.label_vote_radius=-0.01"],
+        ["mapping.mapper.label_vote_min_support=-1"],
         ["sensor.alternate_axis=[0,0,0]"],
         ["sensor.alternate_every_s=0"],
     ],
@@ -125,3 +126,24 @@ def test_cli_help_and_cfg_job() -> None:
     cfg_result = run_cli(["--cfg", "job"])
     assert cfg_result.returncode == 0
     assert "materials:" in cfg_result.stdout
+
+
+def test_the_default_sim_motion_is_the_one_bench_and_rig_touches_use() -> None:
+    # bench/finger_contacts and sim/rig_touches build the rig from SimSensorConfig's defaults;
+    # they must move the object as `sensor=sim` does.
+    from neuralfeels_sem.configs.sensor_sim import SimSensorConfig
+    from neuralfeels_sem.sim.rig import SimRig
+    from tests.sim.shapes import two_material_sphere
+
+    sensor = compose_config([]).sensor
+    motion = SimSensorConfig().rig_motion()
+    assert motion == {
+        "axis": list(sensor.rotation_axis),
+        "speed_deg_s": sensor.rotation_speed_deg_s,
+        "wobble_deg": sensor.wobble_deg,
+        "alternate_axis": list(sensor.alternate_axis),
+        "alternate_every_s": sensor.alternate_every_s,
+    }
+    rig = SimRig(two_material_sphere(0.04), **motion)
+    rig.open()
+    assert len(rig.trajectory.axes) == 2

@@ -27,6 +27,7 @@ import mujoco
 import numpy as np
 from scipy.spatial import cKDTree
 
+from neuralfeels_sem.configs.sensor_sim import SimSensorConfig
 from neuralfeels_sem.objects.library import make_object
 from neuralfeels_sem.objects.material_object import MaterialObject
 from neuralfeels_sem.objects.procedural import RECIPES
@@ -194,10 +195,16 @@ def main(argv: list[str] | None = None) -> None:
     parser.add_argument("--fps", type=float, default=10.0)
     parser.add_argument("--seed", type=int, default=0)
     parser.add_argument("--json", help="also write the reports here")
+    parser.add_argument(
+        "--one-axis", action="store_true", help="turn about rotation_axis only (no alternate axis)"
+    )
     args = parser.parse_args(argv)
+    motion = SimSensorConfig().rig_motion()  # the default sensor=sim motion
+    if args.one_axis:
+        motion["alternate_axis"] = None
     reports = []
     for name in args.objects:
-        report = measure(name, args.duration, args.fps, args.seed)
+        report = measure(name, args.duration, args.fps, args.seed, rig_options=motion)
         print(json.dumps(asdict(report)), flush=True)
         reports.append(report)
     print(table(reports))

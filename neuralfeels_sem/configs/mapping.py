@@ -95,10 +95,12 @@ class MapperConfig:
     material_weight: float = 0.1
     # A labelled touch contradicted by its neighbours (>= min_neighbours labelled touches
     # within radius metres, fewer than min_agreement of them with its label) is not used
-    # for the material loss. 0 = off.
+    # for the material loss, nor one backed by fewer than min_support touches with its label
+    # within radius. radius 0 = off.
     label_vote_radius: float = 0.0
     label_vote_min_neighbours: int = 3
     label_vote_min_agreement: float = 0.25
+    label_vote_min_support: int = 0
     window_recent: int = 4
     window_by_loss: int = 4
     max_keyframes: int = 200
@@ -125,6 +127,7 @@ class MapperConfig:
             "max_keyframes": 1,
             "label_vote_radius": 0.0,
             "label_vote_min_neighbours": 1,
+            "label_vote_min_support": 0,
         }
         for name, low in at_least.items():
             if getattr(self, name) < low:

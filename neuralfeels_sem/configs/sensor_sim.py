@@ -105,6 +105,16 @@ class SimSensorConfig:
             raise ValueError(f"sensor.contact_fraction={self.contact_fraction} must be in (0, 1)")
         _check_firmness("sensor.firmness_mm", self.firmness_mm)
 
+    def rig_motion(self) -> dict:
+        """The object-motion keyword arguments of SimRig that this config sets."""
+        return {
+            "axis": list(self.rotation_axis),
+            "speed_deg_s": self.rotation_speed_deg_s,
+            "wobble_deg": self.wobble_deg,
+            "alternate_axis": None if self.alternate_axis is None else list(self.alternate_axis),
+            "alternate_every_s": self.alternate_every_s,
+        }
+
 
 @dataclass
 class CollectTactileTaskConfig:

@@ -19,13 +19,22 @@ from neuralfeels_sem.perception.touch import NO_LABEL
 from neuralfeels_sem.sensors.frame import TactileReading
 
 
+MIN_LABELLED_SHARE = 0.5  # of the contact pixels, for a touch to have a ground truth
+
+
 def gt_material_of(reading: TactileReading) -> int | None:
-    """Majority ground-truth class over the contact pixels; None without contact or material."""
+    """Majority ground-truth class over the contact pixels.
+
+    None without contact, or when less than MIN_LABELLED_SHARE of the contact lies in the
+    regions of interest: a press on an ignored face (an object's bottom) is not judged by
+    the few labelled pixels at its rim.
+    """
     if reading.gt_material is None or reading.gt_contact_mask is None:
         return None
     material = np.asarray(reading.gt_material)[np.asarray(reading.gt_contact_mask, dtype=bool)]
+    contact_px = material.size
     material = material[material != IGNORE]
-    if material.size == 0:
+    if material.size == 0 or material.size < MIN_LABELLED_SHARE * contact_px:
         return None
     values, counts = np.unique(material.astype(np.int64), return_counts=True)
     return int(values[counts.argmax()])  # ties go to the lower class index

@@ -100,14 +100,17 @@ def outvoted_touches(
     radius: float,
     min_neighbours: int,
     min_agreement: float,
+    min_support: int = 0,
 ) -> torch.Tensor:
-    """(T,) bool: labelled touches that their labelled neighbours contradict.
+    """(T,) bool: labelled touches that their labelled neighbours contradict or do not back.
 
     A touch is outvoted when at least `min_neighbours` other touches lie within `radius`
     (centroid distance) and fewer than `min_agreement` of them carry its label: one
     confident misclassification among many consistent touches would otherwise paint its
     own patch. A touch with few neighbours, e.g. on a small patch of another material
-    with touches of its own, is kept.
+    with touches of its own, is kept, unless fewer than `min_support` of its neighbours
+    carry its label: a lone wrong touch where nobody else touched paints the largest
+    patch, while a real contact is usually labelled in several frames as it slides.
     """
     if centroids.ndim != 2 or centroids.shape[1] != 3 or labels.shape != centroids.shape[:1]:
         raise ValueError(
@@ -119,7 +122,9 @@ def outvoted_touches(
     near.fill_diagonal_(False)
     neighbours = near.sum(1)
     agree = (near & (labels[None, :] == labels[:, None])).sum(1)
-    return (neighbours >= min_neighbours) & (agree < min_agreement * neighbours)
+    return ((neighbours >= min_neighbours) & (agree < min_agreement * neighbours)) | (
+        agree < min_support
+    )
 
 
 class TouchBuffer:
@@ -135,11 +140,13 @@ class TouchBuffer:
         vote_radius: float = 0.0,
         vote_min_neighbours: int = 3,
         vote_min_agreement: float = 0.25,
+        vote_min_support: int = 0,
     ) -> None:
         self.device = device
         self.vote_radius = float(vote_radius)
         self.vote_min_neighbours = int(vote_min_neighbours)
         self.vote_min_agreement = float(vote_min_agreement)
+        self.vote_min_support = int(vote_min_support)
         self._num_outvoted = 0  # set with the cached tensors; read through num_outvoted
         self._points: list[torch.Tensor] = []
         self._axes: list[torch.Tensor] = []
@@ -203,6 +210,7 @@ class TouchBuffer:
             self.vote_radius,
             self.vote_min_neighbours,
             self.vote_min_agreement,
+            self.vote_min_support,
         )
         self._num_outvoted = int(outvoted.sum())
         sizes = torch.tensor([len(p) for p in self._points], device=labels.device)

@@ -180,11 +180,14 @@ class GaitingPolicy:
         k, phase = self.cycle_and_phase(finger, t)
         planned = self.contact(finger, k)
         now = self.last_contact.get((finger, k), planned)
+        if (finger, k) in self.broken:
+            # Given up: wait at the hover place (fixed in the world) rather than follow the
+            # turning object, which would drag the finger to the end of its reach where the
+            # object turns into it.
+            now = None
         if phase < self.contact_fraction:
             if now is None:
                 return FingerPlan(hover, hover_pad, False, k, None)
-            if (finger, k) in self.broken:
-                return FingerPlan(self._lifted(now), now.pad, False, k, None)
             return FingerPlan(self._pressed(finger, now), now.pad, True, k, now)
         u = (phase - self.contact_fraction) / (1.0 - self.contact_fraction)
         nxt = self.contact(finger, k + 1)

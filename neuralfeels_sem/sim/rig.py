@@ -87,7 +87,10 @@ MIN_CONTACT_RAYS = 3  # of the 25 gel rays, in contact at the press depth (a til
 GOOD_CONTACT_RAYS = 10  # meets the object with its edge); more than GOOD counts the same
 MIN_PRESSED_RAYS = 2  # once pressed to its firmness (the IK turns a tilted pad a little)
 BOTTOM_COS = 0.7  # no touches where the surface faces the palm this squarely (the resting
-# bottom of an object is unlabelled, and there is no room there for a finger)
+# bottom of an object is unlabelled, and there is no room there for a finger), nor where it
+# faces the object's own -z this squarely: its bottom, which a second rotation axis brings
+# round to the fingers (outside the regions of interest of every shipped object; a flat
+# bottom fills the whole gel, unlike any press the classifier was trained on)
 FINGER_CLEARANCE_M = 0.001  # gap kept between a new contact's finger and the busy fingers
 OVERLAP_TOLERANCE_M = 0.001  # fingers closer than -this are pulled apart at run time
 # Order in which fingers plan (and so claim room for) new contacts when several do at once:
@@ -342,6 +345,7 @@ class SimRig:
             head.sort(key=lambda c: c[:5])
             head = [c[1:] for c in head]
         up = self.scene.world_T_palm[:3, 0]
+        object_down = -world_T_object[:3, 2]  # the object's own -z, in the world
         rest = [(g, REST_Q[self.ik.qpos_adr[g]]) for g in self.fingers if g != finger]
         for *_, q in (head + candidates[COMPAT_CANDIDATES:])[:VERIFY_CANDIDATES]:
             data.qpos[joints] = q
@@ -354,6 +358,7 @@ class SimRig:
             if (
                 np.count_nonzero(reach >= deepest - press) < MIN_PRESSED_RAYS
                 or normal @ up < -BOTTOM_COS
+                or normal @ object_down > BOTTOM_COS
                 or not self._clear_of(finger, firm)  # the IK moved the finger
                 # and a neighbour must be able to get out of its way (see _keep_apart)
                 or not self._clear_of(finger, rest)
@@ -674,10 +679,13 @@ class SimRig:
             errors[f] = float(np.linalg.norm(targets[f].gel_position - self.ik.gel_pose(f)[0]))
             press[f] = self.press_depth(f)
         touching, contact = {}, {}
+        object_down = -world_T_object[:3, 2]
         for f in self.fingers:
             plan = plans[f]
             hit = self._touch_point(f) if plan.touching else None
             ok = plan.touching and errors[f] < LOST_CONTACT_M and press[f] > 0 and hit is not None
+            # a touch that slid onto the object's bottom gives up (see BOTTOM_COS)
+            ok = ok and hit[1] @ object_down <= BOTTOM_COS
             if plan.touching and not ok:
                 self.policy.broken.add((f, plan.cycle))
             touching[f] = ok

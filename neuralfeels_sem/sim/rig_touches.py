@@ -64,18 +64,10 @@ def collect(
     gate = ContactGate()
     records: list[dict] = []
     progress = tqdm(total=len(objects) * frames, desc="rig touches", unit="frame")
-    motion = SimSensorConfig()  # the default sensor=sim motion
+    motion = SimSensorConfig().rig_motion()  # the default sensor=sim motion
     for name in objects:
         obj = make_object(name, tuple(classes))
-        rig = SimRig(
-            obj,
-            axis=motion.rotation_axis,
-            speed_deg_s=motion.rotation_speed_deg_s,
-            wobble_deg=motion.wobble_deg,
-            alternate_axis=motion.alternate_axis,
-            alternate_every_s=motion.alternate_every_s,
-            seed=seed,
-        )
+        rig = SimRig(obj, seed=seed, **motion)
         rig.open()
         renderers = {f: DigitRenderer(obj, seed=finger_seed(seed, f)) for f in FINGERS}
         try:

@@ -93,9 +93,17 @@ def test_gt_material_is_the_majority_under_the_contact() -> None:
     material[:10, :10] = 2
     material[:10, :3] = 1  # 30 metal pixels vs 70 fabric inside the contact
     assert gt_material_of(reading(mask, material)) == 2
-    material[:10, :10] = -1  # contact over an ignored region
-    material[0, 0] = 0
+    material[:10, :5] = -1  # half the contact over an ignored region
+    material[:10, 5:] = 0
     assert gt_material_of(reading(mask, material)) == 0
+
+
+def test_a_touch_mostly_outside_the_regions_of_interest_has_no_ground_truth() -> None:
+    mask = np.zeros((DIGIT_HEIGHT, DIGIT_WIDTH), dtype=bool)
+    material = np.full((DIGIT_HEIGHT, DIGIT_WIDTH), -1, dtype=np.int16)
+    mask[:10, :10] = True
+    material[:10, :4] = 1  # 40 metal pixels at the rim of an ignored bottom
+    assert gt_material_of(reading(mask, material)) is None
 
 
 def test_gt_material_is_none_without_contact_or_ground_truth() -> None:

@@ -92,3 +92,27 @@ def test_label_vote_drops_a_touch_its_neighbours_contradict() -> None:
     ]
     with pytest.raises(ValueError, match="centroids"):
         outvoted_touches(c[:, :2], torch.tensor([0, 0, 2, 2]), 0.01, 3, 0.25)
+
+
+def test_label_vote_min_support_drops_a_lone_touch_until_another_agrees() -> None:
+    from neuralfeels_sem.mapping.keyframes import outvoted_touches
+
+    c = torch.tensor([[0.0, 0, 0], [0.001, 0, 0], [0.05, 0, 0]])
+    labels = torch.tensor([2, 2, 0])  # two agreeing fabric touches, one lone plastic far off
+    assert outvoted_touches(c, labels, 0.01, 3, 0.25).tolist() == [False, False, False]
+    assert outvoted_touches(c, labels, 0.01, 3, 0.25, min_support=1).tolist() == [
+        False,
+        False,
+        True,
+    ]
+    # a second plastic touch next to the first backs it
+    c2 = torch.cat([c, torch.tensor([[0.051, 0, 0]])])
+    labels2 = torch.tensor([2, 2, 0, 0])
+    assert not outvoted_touches(c2, labels2, 0.01, 3, 0.25, min_support=1).any()
+
+    axis = torch.tensor([0.0, 0.0, 1.0])
+    touches = TouchBuffer(torch.device("cpu"), vote_radius=0.01, vote_min_support=1)
+    touches.add(torch.zeros(4, 3), axis, label=1, weight=0.9)
+    assert touches.num_outvoted == 1 and touches.tensors()["labelled_points"].shape == (0, 3)
+    touches.add(torch.full((4, 3), 0.001), axis, label=1, weight=0.9)
+    assert touches.num_outvoted == 0 and touches.tensors()["labelled_points"].shape == (8, 3)

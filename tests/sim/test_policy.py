@@ -69,17 +69,23 @@ def test_transfers_stay_outside_the_object() -> None:
                 assert np.linalg.norm(plan.gel_target) >= RADIUS - PRESS[finger] - 1e-9
 
 
-def test_plan_is_repeatable_and_a_broken_contact_lifts() -> None:
+def test_plan_is_repeatable_and_a_broken_contact_waits_at_the_hover_place() -> None:
     a, b = make_policy(), make_policy()
     hover, pad = np.array([0.1, 0.0, 0.0]), np.array([-1.0, 0.0, 0.0])
     np.testing.assert_allclose(
         a.plan("ring", 2.0, hover, pad).gel_target, b.plan("ring", 2.0, hover, pad).gel_target
     )
     k, _ = a.cycle_and_phase("index", 0.1)
+    assert a.plan("index", 0.1, hover, pad).touching
     a.broken.add(("index", k))
     plan = a.plan("index", 0.1, hover, pad)
     assert not plan.touching
-    assert np.linalg.norm(plan.gel_target) == pytest.approx(RADIUS + a.lift, abs=1e-12)
+    np.testing.assert_allclose(plan.gel_target, hover)
+    np.testing.assert_allclose(plan.pad_direction, pad)
+    # and the lift after the contact phase starts from there, not from the given-up touch
+    lifting = a.plan("index", (k + 0.8) * a.period, hover, pad)
+    assert not lifting.touching
+    np.testing.assert_allclose(lifting.gel_target, hover)
 
 
 @pytest.mark.parametrize("fraction", [0.0, 1.0])
