@@ -18,7 +18,6 @@ from neuralfeels_sem.objects.material_object import IGNORE
 from neuralfeels_sem.perception.touch import NO_LABEL
 from neuralfeels_sem.sensors.frame import TactileReading
 
-
 MIN_LABELLED_SHARE = 0.5  # of the contact pixels, for a touch to have a ground truth
 
 
