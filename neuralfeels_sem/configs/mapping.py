@@ -97,10 +97,10 @@ class MapperConfig:
     # within radius metres, fewer than min_agreement of them with its label) is not used
     # for the material loss, nor one backed by fewer than min_support touches with its label
     # within radius. radius 0 = off.
-    label_vote_radius: float = 0.0
+    label_vote_radius: float = 0.02
     label_vote_min_neighbours: int = 3
     label_vote_min_agreement: float = 0.25
-    label_vote_min_support: int = 0
+    label_vote_min_support: int = 1
     window_recent: int = 4
     window_by_loss: int = 4
     max_keyframes: int = 200

@@ -87,10 +87,11 @@ MIN_CONTACT_RAYS = 3  # of the 25 gel rays, in contact at the press depth (a til
 GOOD_CONTACT_RAYS = 10  # meets the object with its edge); more than GOOD counts the same
 MIN_PRESSED_RAYS = 2  # once pressed to its firmness (the IK turns a tilted pad a little)
 BOTTOM_COS = 0.7  # no touches where the surface faces the palm this squarely (the resting
-# bottom of an object is unlabelled, and there is no room there for a finger), nor where it
-# faces the object's own -z this squarely: its bottom, which a second rotation axis brings
-# round to the fingers (outside the regions of interest of every shipped object; a flat
-# bottom fills the whole gel, unlike any press the classifier was trained on)
+# bottom of an object is unlabelled, and there is no room there for a finger), nor, on an
+# object with a flat base, where it faces the object's own -z this squarely: the base it
+# stands on, which a second rotation axis brings round to the fingers. A flat base fills
+# the whole gel, unlike any press the classifier was trained on.
+FLAT_BASE_SHARE = 0.02  # of the surface area facing -z within 8 degrees: a flat base
 FINGER_CLEARANCE_M = 0.001  # gap kept between a new contact's finger and the busy fingers
 OVERLAP_TOLERANCE_M = 0.001  # fingers closer than -this are pulled apart at run time
 # Order in which fingers plan (and so claim room for) new contacts when several do at once:
@@ -115,6 +116,13 @@ _PROBE_BACK_M = 0.01  # reach reported when nothing is in view (m behind the gel
 _GRID_RAYS = np.column_stack([_GRID, np.full(len(_GRID), GEL_DISTANCE_M)])
 _GRID_RAYS /= np.linalg.norm(_GRID_RAYS, axis=1, keepdims=True)
 _CENTRE_FIRST = np.argsort(np.linalg.norm(_GRID, axis=1), kind="stable")  # rays, inner first
+
+
+def flat_base_share(mesh) -> float:
+    """Share of a mesh's surface area facing its -z within 8 degrees (a flat base)."""
+    area = np.asarray(mesh.area_faces)
+    down = np.asarray(mesh.face_normals)[:, 2] < -0.99
+    return float(area[down].sum() / max(area.sum(), 1e-12))
 
 
 def _gel_site(model: mujoco.MjModel, finger: str) -> int:
@@ -226,6 +234,7 @@ class SimRig:
             for f in FINGERS
         }
         self._touched: dict[str, deque] = {f: deque(maxlen=MEMORY) for f in FINGERS}
+        self.flat_base = flat_base_share(self.obj.mesh) >= FLAT_BASE_SHARE
         self._libraries: dict[tuple[str, int], np.ndarray] = {}
         self._profiles: dict[int, tuple[int, np.ndarray, np.ndarray]] = {}  # per segment
         self.scene.set_state(self.q, self.trajectory.pose(0.0))
@@ -345,7 +354,8 @@ class SimRig:
             head.sort(key=lambda c: c[:5])
             head = [c[1:] for c in head]
         up = self.scene.world_T_palm[:3, 0]
-        object_down = -world_T_object[:3, 2]  # the object's own -z, in the world
+        # the object's own -z in the world; never matches without a flat base
+        object_down = -world_T_object[:3, 2] if self.flat_base else np.zeros(3)
         rest = [(g, REST_Q[self.ik.qpos_adr[g]]) for g in self.fingers if g != finger]
         for *_, q in (head + candidates[COMPAT_CANDIDATES:])[:VERIFY_CANDIDATES]:
             data.qpos[joints] = q
@@ -679,12 +689,12 @@ class SimRig:
             errors[f] = float(np.linalg.norm(targets[f].gel_position - self.ik.gel_pose(f)[0]))
             press[f] = self.press_depth(f)
         touching, contact = {}, {}
-        object_down = -world_T_object[:3, 2]
+        object_down = -world_T_object[:3, 2] if self.flat_base else np.zeros(3)
         for f in self.fingers:
             plan = plans[f]
             hit = self._touch_point(f) if plan.touching else None
             ok = plan.touching and errors[f] < LOST_CONTACT_M and press[f] > 0 and hit is not None
-            # a touch that slid onto the object's bottom gives up (see BOTTOM_COS)
+            # a touch that slid onto the object's flat base gives up (see BOTTOM_COS)
             ok = ok and hit[1] @ object_down <= BOTTOM_COS
             if plan.touching and not ok:
                 self.policy.broken.add((f, plan.cycle))

@@ -4,13 +4,15 @@ from __future__ import annotations
 
 import numpy as np
 import pytest
+import trimesh
 from scipy.spatial import cKDTree
 
 from neuralfeels_sem.bench.finger_contacts import finger_gaps, finger_geoms
 from neuralfeels_sem.sensors.frame import FINGERS
 from neuralfeels_sem.sim.kinematics import HandKinematics
-from neuralfeels_sem.sim.rig import OVERLAP_TOLERANCE_M, SimRig
-from tests.sim.shapes import two_material_sphere
+from neuralfeels_sem.objects.material_object import MaterialObject
+from neuralfeels_sem.sim.rig import BOTTOM_COS, OVERLAP_TOLERANCE_M, SimRig
+from tests.sim.shapes import CLASSES, two_material_sphere
 
 
 @pytest.fixture(scope="module")
@@ -126,3 +128,27 @@ def test_an_alternate_axis_brings_the_poles_round_to_the_fingers() -> None:
         latitude = np.degrees(np.arcsin(np.abs(points[:, 2]) / np.linalg.norm(points, axis=1)))
         polar[name] = np.percentile(latitude, 90)
     assert polar["alternating"] > polar["one axis"] + 15.0, polar
+
+
+def test_fingers_keep_off_a_flat_base_that_the_alternate_axis_brings_round() -> None:
+    from neuralfeels_sem.sim.rig import flat_base_share
+
+    mesh = trimesh.creation.cylinder(radius=0.03, height=0.06, sections=48)
+    obj = MaterialObject("can", mesh, np.zeros(len(mesh.faces), int), CLASSES)
+    assert flat_base_share(obj.mesh) == pytest.approx(1 / 6, abs=0.01)  # r / (2r + 2h)
+    assert flat_base_share(two_material_sphere(0.04).mesh) < 0.02  # no flat base: no rule
+    rig = SimRig(obj, alternate_axis=(0.0, 1.0, 0.0), alternate_every_s=1.5)
+    normals = []
+    for i in range(60):
+        state = rig.state_at(i / 10)
+        for finger, point in state.contact_point.items():
+            if point is not None:
+                normals.append(
+                    rig.policy.last_contact[
+                        (finger, rig.policy.cycle_and_phase(finger, i / 10)[0])
+                    ].normal
+                )
+    normals = np.array(normals)
+    assert len(normals) > 60
+    assert (normals[:, 2] < -BOTTOM_COS).sum() == 0  # never held on the base
+    assert (normals[:, 2] > BOTTOM_COS).sum() > 0  # while the top does come round
