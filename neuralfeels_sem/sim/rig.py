@@ -246,6 +246,10 @@ class SimRig:
         sid = _gel_site(model, finger)
         return data.site_xpos[sid].copy(), data.site_xmat[sid].reshape(3, 3)[:, 2].copy()
 
+    def _on_flat_base(self, normal: np.ndarray, world_T_object: np.ndarray) -> bool:
+        """Does a world-frame surface normal face the object's own -z (its flat base)?"""
+        return self.flat_base and float(normal @ -world_T_object[:3, 2]) > BOTTOM_COS
+
     def _grasp_centre(self, palm: np.ndarray) -> np.ndarray:
         """Between the middle finger's and the thumb's natural pads, clear of the palm.
 
@@ -354,8 +358,6 @@ class SimRig:
             head.sort(key=lambda c: c[:5])
             head = [c[1:] for c in head]
         up = self.scene.world_T_palm[:3, 0]
-        # the object's own -z in the world; never matches without a flat base
-        object_down = -world_T_object[:3, 2] if self.flat_base else np.zeros(3)
         rest = [(g, REST_Q[self.ik.qpos_adr[g]]) for g in self.fingers if g != finger]
         for *_, q in (head + candidates[COMPAT_CANDIDATES:])[:VERIFY_CANDIDATES]:
             data.qpos[joints] = q
@@ -368,7 +370,7 @@ class SimRig:
             if (
                 np.count_nonzero(reach >= deepest - press) < MIN_PRESSED_RAYS
                 or normal @ up < -BOTTOM_COS
-                or normal @ object_down > BOTTOM_COS
+                or self._on_flat_base(normal, world_T_object)
                 or not self._clear_of(finger, firm)  # the IK moved the finger
                 # and a neighbour must be able to get out of its way (see _keep_apart)
                 or not self._clear_of(finger, rest)
@@ -689,13 +691,12 @@ class SimRig:
             errors[f] = float(np.linalg.norm(targets[f].gel_position - self.ik.gel_pose(f)[0]))
             press[f] = self.press_depth(f)
         touching, contact = {}, {}
-        object_down = -world_T_object[:3, 2] if self.flat_base else np.zeros(3)
         for f in self.fingers:
             plan = plans[f]
             hit = self._touch_point(f) if plan.touching else None
             ok = plan.touching and errors[f] < LOST_CONTACT_M and press[f] > 0 and hit is not None
             # a touch that slid onto the object's flat base gives up (see BOTTOM_COS)
-            ok = ok and hit[1] @ object_down <= BOTTOM_COS
+            ok = ok and not self._on_flat_base(hit[1], world_T_object)
             if plan.touching and not ok:
                 self.policy.broken.add((f, plan.cycle))
             touching[f] = ok
