@@ -89,6 +89,8 @@ def test_wrong_type_fails_at_compose() -> None:
         ["materials=[plastic]"],
         ["task=collect_tactile", "task.edge_press_fraction=1.5"],
         ["task=collect_tactile", "task.edge_tilt_deg=[40,15]"],
+        ["task=train_classifier", "task.lr_schedule=step"],
+        ["task=train_classifier", "task.min_lr_ratio=2"],
         ["mapping.mapper.label_vote_min_agreement=0"],
         ["mapping.mapper.label_vote_radius=-0.01"],
         ["mapping.mapper.label_vote_min_support=-1"],

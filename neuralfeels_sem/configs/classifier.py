@@ -82,8 +82,14 @@ class TrainClassifierTaskConfig(TaskConfig):
     color_gain: float = 0.1
     resume: str = "auto"  # auto (continue when the run dir has last.pt) | never | PATH to a run dir or last.pt
     export_fp16: bool = False  # store classifier.pt in half precision (the shipped asset)
+    lr_schedule: str = "constant"  # constant (the paper) | cosine: decay to min_lr_ratio * lr
+    min_lr_ratio: float = 0.01
 
     def __post_init__(self) -> None:
+        if self.lr_schedule not in ("constant", "cosine"):
+            raise ValueError(f"task.lr_schedule={self.lr_schedule!r} must be constant or cosine")
+        if not 0.0 <= self.min_lr_ratio <= 1.0:
+            raise ValueError(f"task.min_lr_ratio={self.min_lr_ratio} must be in [0, 1]")
         for name in ("batch_size", "max_epochs", "patience"):
             if getattr(self, name) < 1:
                 raise ValueError(f"task.{name}={getattr(self, name)} must be >= 1")

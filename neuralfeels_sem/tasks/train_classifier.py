@@ -136,6 +136,8 @@ def run(cfg: DictConfig) -> dict:
         contrast=task.contrast,
         color_gain=task.color_gain,
         seed=seed,
+        lr_schedule=task.lr_schedule,
+        min_lr_ratio=task.min_lr_ratio,
     )
     mean, std = list(IMAGENET_MEAN), list(IMAGENET_STD)
     tr, va, te = parts["train"], parts["val"], parts["test"]

@@ -9,6 +9,7 @@ import pytest
 import torch
 
 from neuralfeels_sem.errors import DataError
+from neuralfeels_sem.perception.classifier import train as train_module
 from neuralfeels_sem.perception.classifier.checkpoint import load_checkpoint
 from neuralfeels_sem.perception.classifier.model import build_model
 from neuralfeels_sem.perception.classifier.train import (
@@ -45,9 +46,17 @@ def fit(
     resume: bool = False,
     patience: int = 10,
     lr: float = 3e-4,
+    lr_schedule: str = "constant",
 ):
     torch.manual_seed(0)
-    settings = TrainSettings(batch_size=8, max_epochs=max_epochs, patience=patience, lr=lr, seed=0)
+    settings = TrainSettings(
+        batch_size=8,
+        max_epochs=max_epochs,
+        patience=patience,
+        lr=lr,
+        seed=0,
+        lr_schedule=lr_schedule,
+    )
     return train(
         build_model(4),
         *arrays,
@@ -79,6 +88,40 @@ def test_resumed_run_ends_where_an_uninterrupted_one_does(arrays, tmp_path: Path
         best.meta["epoch"] == resumed.best_epoch
         and best.meta["val_accuracy"] == resumed.best_val_accuracy
     )
+
+
+def test_cosine_schedule_runs_from_lr_to_its_floor() -> None:
+    settings = TrainSettings(lr=1e-3, lr_schedule="cosine", min_lr_ratio=0.01)
+    assert settings.lr_at(0.0) == pytest.approx(1e-3)
+    assert settings.lr_at(0.5) == pytest.approx(0.5 * (1e-3 + 1e-5))
+    assert settings.lr_at(1.0) == pytest.approx(1e-5)
+    lrs = [settings.lr_at(p) for p in np.linspace(0, 1, 11)]
+    assert all(a > b for a, b in zip(lrs, lrs[1:]))
+    assert TrainSettings(lr=1e-3).lr_at(0.9) == 1e-3  # the paper's constant lr
+    with pytest.raises(ValueError, match="lr_schedule"):
+        TrainSettings(lr_schedule="step")
+
+
+def test_resumed_cosine_run_follows_the_same_schedule(
+    arrays, tmp_path: Path, monkeypatch: pytest.MonkeyPatch
+) -> None:
+    straight = fit(arrays, tmp_path / "straight", max_epochs=2, lr_schedule="cosine")
+    save_last = train_module._save_last
+
+    def stop_after_first_epoch(path, model, optimizer, generator, state):
+        save_last(path, model, optimizer, generator, state)
+        if state["epoch"] == 1:
+            raise KeyboardInterrupt  # the run is killed once epoch 1 is on disk
+
+    monkeypatch.setattr(train_module, "_save_last", stop_after_first_epoch)
+    with pytest.raises(KeyboardInterrupt):
+        fit(arrays, tmp_path / "cut", max_epochs=2, lr_schedule="cosine")
+    monkeypatch.setattr(train_module, "_save_last", save_last)
+    resumed = fit(arrays, tmp_path / "cut", max_epochs=2, resume=True, lr_schedule="cosine")
+    assert resumed.resumed_from_epoch == 1
+    assert resumed.history == straight.history
+    ends = [h["lr_end"] for h in straight.history]
+    assert ends[0] < 3e-4 and ends[1] < ends[0]
 
 
 def test_early_stopping_rule(arrays, tmp_path: Path) -> None:

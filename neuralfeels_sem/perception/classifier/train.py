@@ -11,6 +11,7 @@ from __future__ import annotations
 
 import json
 import logging
+import math
 from dataclasses import asdict, dataclass, field
 from pathlib import Path
 
@@ -29,6 +30,7 @@ log = logging.getLogger(__name__)
 
 LAST = "last.pt"
 BEST = "best.pt"
+LR_SCHEDULES = ("constant", "cosine")
 
 
 @dataclass
@@ -43,6 +45,21 @@ class TrainSettings:
     contrast: float = 0.2
     color_gain: float = 0.1
     seed: int = 0
+    lr_schedule: str = "constant"  # constant | cosine (to min_lr_ratio * lr at max_epochs)
+    min_lr_ratio: float = 0.01
+
+    def __post_init__(self) -> None:
+        if self.lr_schedule not in LR_SCHEDULES:
+            raise ValueError(f"lr_schedule={self.lr_schedule!r} is not one of {LR_SCHEDULES}")
+        if not 0.0 <= self.min_lr_ratio <= 1.0:
+            raise ValueError(f"min_lr_ratio={self.min_lr_ratio} must be in [0, 1]")
+
+    def lr_at(self, progress: float) -> float:
+        """Learning rate at `progress` = finished share of max_epochs (0 .. 1)."""
+        if self.lr_schedule == "constant":
+            return self.lr
+        floor = self.min_lr_ratio * self.lr
+        return floor + 0.5 * (self.lr - floor) * (1.0 + math.cos(math.pi * min(progress, 1.0)))
 
 
 @dataclass
@@ -118,6 +135,10 @@ def train(
             idx = order[step * settings.batch_size : (step + 1) * settings.batch_size]
             if len(idx) < 2:  # BatchNorm cannot train on a batch of one
                 continue
+            # A function of the global step, so a resumed run follows the same schedule.
+            lr = settings.lr_at((epoch * steps + step) / (settings.max_epochs * steps))
+            for group in optimizer.param_groups:
+                group["lr"] = lr
             x = to_tensor(train_images[idx]).to(device)
             x = augment(
                 x,
@@ -145,6 +166,7 @@ def train(
             "train_loss": loss_sum / max(seen, 1),
             "train_accuracy": correct / max(seen, 1),
             "val_accuracy": val_acc,
+            "lr_end": float(optimizer.param_groups[0]["lr"]),
         }
         state["history"].append(record)
         if val_acc > state["best_val"]:
