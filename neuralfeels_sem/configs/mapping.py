@@ -101,6 +101,7 @@ class MapperConfig:
     label_vote_min_neighbours: int = 3
     label_vote_min_agreement: float = 0.25
     label_vote_min_support: int = 1
+    label_vote_press_gap: int = 2
     window_recent: int = 4
     window_by_loss: int = 4
     max_keyframes: int = 200
@@ -128,6 +129,7 @@ class MapperConfig:
             "label_vote_radius": 0.0,
             "label_vote_min_neighbours": 1,
             "label_vote_min_support": 0,
+            "label_vote_press_gap": 0,
         }
         for name, low in at_least.items():
             if getattr(self, name) < low:

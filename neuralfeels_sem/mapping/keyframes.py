@@ -101,6 +101,7 @@ def outvoted_touches(
     min_neighbours: int,
     min_agreement: float,
     min_support: int = 0,
+    events: torch.Tensor | None = None,
 ) -> torch.Tensor:
     """(T,) bool: labelled touches that their labelled neighbours contradict or do not back.
 
@@ -110,7 +111,12 @@ def outvoted_touches(
     own patch. A touch with few neighbours, e.g. on a small patch of another material
     with touches of its own, is kept, unless fewer than `min_support` of its neighbours
     carry its label: a lone wrong touch where nobody else touched paints the largest
-    patch, while a real contact is usually labelled in several frames as it slides.
+    patch.
+
+    `events` (T,) groups touches into presses (see `press_events`): neighbours and
+    agreeing neighbours are then counted as other presses, not frames. The frames of one
+    press repeat one imprint, and a misclassified imprint is usually misclassified in all
+    of them, so they must not back each other. None: every touch is its own press.
     """
     if centroids.ndim != 2 or centroids.shape[1] != 3 or labels.shape != centroids.shape[:1]:
         raise ValueError(
@@ -118,13 +124,48 @@ def outvoted_touches(
         )
     if len(labels) == 0 or radius <= 0.0:
         return torch.zeros(len(labels), dtype=torch.bool, device=labels.device)
+    if events is not None and events.shape != labels.shape:
+        raise ValueError(f"expected (T,) events for {len(labels)} touches, got {events.shape}")
     near = torch.cdist(centroids, centroids) < radius
     near.fill_diagonal_(False)
-    neighbours = near.sum(1)
-    agree = (near & (labels[None, :] == labels[:, None])).sum(1)
+    agreeing = near & (labels[None, :] == labels[:, None])
+    if events is None:
+        neighbours, agree = near.sum(1), agreeing.sum(1)
+    else:
+        near &= events[None, :] != events[:, None]
+        agreeing &= near
+        # (T, K) one-hot press membership: count the presses a touch sees, not their frames.
+        _, press = torch.unique(events, return_inverse=True)
+        members = torch.nn.functional.one_hot(press).to(centroids.dtype)
+        neighbours = ((near.to(centroids.dtype) @ members) > 0).sum(1)
+        agree = ((agreeing.to(centroids.dtype) @ members) > 0).sum(1)
     return ((neighbours >= min_neighbours) & (agree < min_agreement * neighbours)) | (
         agree < min_support
     )
+
+
+def press_events(fingers: list[str | None], frames: list[int], gap: int) -> torch.Tensor:
+    """(T,) press ids: a finger's touches at most `gap` frames after its previous one share it.
+
+    Touches must come in frame order. A touch without a finger (None) is a press of its
+    own, as is every touch when `gap` < 1.
+    """
+    if len(fingers) != len(frames):
+        raise ValueError(f"{len(fingers)} fingers for {len(frames)} frame indices")
+    ids, last = [], {}
+    for finger, frame in zip(fingers, frames):
+        previous = last.get(finger)
+        if (
+            finger is not None
+            and gap >= 1
+            and previous is not None
+            and 0 <= frame - previous[0] <= gap
+        ):
+            ids.append(previous[1])
+        else:
+            ids.append(len(ids))
+        last[finger] = (frame, ids[-1])
+    return torch.tensor(ids, dtype=torch.long)
 
 
 class TouchBuffer:
@@ -141,25 +182,40 @@ class TouchBuffer:
         vote_min_neighbours: int = 3,
         vote_min_agreement: float = 0.25,
         vote_min_support: int = 0,
+        vote_press_gap: int = 0,
     ) -> None:
         self.device = device
         self.vote_radius = float(vote_radius)
         self.vote_min_neighbours = int(vote_min_neighbours)
         self.vote_min_agreement = float(vote_min_agreement)
         self.vote_min_support = int(vote_min_support)
+        self.vote_press_gap = int(vote_press_gap)  # 0: every touch votes on its own
         self._num_outvoted = 0  # set with the cached tensors; read through num_outvoted
         self._points: list[torch.Tensor] = []
         self._axes: list[torch.Tensor] = []
         self._labels: list[torch.Tensor] = []
         self._weights: list[torch.Tensor] = []
+        self._fingers: list[str | None] = []  # which finger made each touch (None: unknown)
+        self._frames: list[int] = []  # frame index of each touch
         self._cat: dict[str, torch.Tensor] | None = None
         self.num_touches = 0
         self.num_labelled = 0
 
-    def add(self, points: torch.Tensor, axis: torch.Tensor, label: int, weight: float) -> None:
-        """`label` -1 keeps the touch for geometry only."""
+    def add(
+        self,
+        points: torch.Tensor,
+        axis: torch.Tensor,
+        label: int,
+        weight: float,
+        finger: str | None = None,
+        frame_index: int = -1,
+    ) -> None:
+        """`label` -1 keeps the touch for geometry only; `finger` and `frame_index` tell
+        the vote which touches are frames of one press (None: a press of its own)."""
         _check_points(points, "touch points")
         n = points.shape[0]
+        self._fingers.append(finger)
+        self._frames.append(int(frame_index))
         self._points.append(points)
         self._axes.append(axis.reshape(1, 3).expand(n, 3).clone())
         self._labels.append(torch.full((n,), int(label), dtype=torch.long, device=points.device))
@@ -203,6 +259,10 @@ class TouchBuffer:
         labels = torch.stack([t[0] for t in self._labels])
         centroids = torch.stack([p.mean(0) for p in self._points])
         mine = labels >= 0
+        kept = torch.nonzero(mine).flatten().tolist()
+        events = press_events(
+            [self._fingers[i] for i in kept], [self._frames[i] for i in kept], self.vote_press_gap
+        ).to(labels.device)
         outvoted = torch.zeros(len(labels), dtype=torch.bool, device=labels.device)
         outvoted[mine] = outvoted_touches(
             centroids[mine],
@@ -211,6 +271,7 @@ class TouchBuffer:
             self.vote_min_neighbours,
             self.vote_min_agreement,
             self.vote_min_support,
+            events,
         )
         self._num_outvoted = int(outvoted.sum())
         sizes = torch.tensor([len(p) for p in self._points], device=labels.device)
@@ -232,6 +293,8 @@ class TouchBuffer:
             "axes": list(self._axes),
             "labels": list(self._labels),
             "weights": list(self._weights),
+            "fingers": list(self._fingers),
+            "frames": list(self._frames),
             "num_touches": self.num_touches,
             "num_labelled": self.num_labelled,
         }
@@ -241,6 +304,9 @@ class TouchBuffer:
         self._axes = [t.to(self.device) for t in state["axes"]]
         self._labels = [t.to(self.device) for t in state["labels"]]
         self._weights = [t.to(self.device) for t in state["weights"]]
+        # Checkpoints from before presses were recorded: every touch a press of its own.
+        self._fingers = list(state.get("fingers", [None] * len(self._points)))
+        self._frames = [int(f) for f in state.get("frames", [-1] * len(self._points))]
         self.num_touches = int(state["num_touches"])
         self.num_labelled = int(state["num_labelled"])
         self._cat = None

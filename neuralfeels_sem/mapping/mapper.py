@@ -90,6 +90,7 @@ class OnlineMapper:
         label_vote_min_neighbours: int = 3,
         label_vote_min_agreement: float = 0.25,
         label_vote_min_support: int = 0,
+        label_vote_press_gap: int = 0,
         window_recent: int = 4,
         window_by_loss: int = 4,
         max_keyframes: int = 200,
@@ -160,11 +161,16 @@ class OnlineMapper:
         self.tactile_depth = tactile_depth or TactileDepth("gt")
         self.use_camera_mask = use_camera_mask
         self.keyframes = KeyframeBuffer(max_keyframes, window_recent, window_by_loss)
-        if label_vote_radius < 0 or label_vote_min_neighbours < 1 or label_vote_min_support < 0:
+        if (
+            label_vote_radius < 0
+            or label_vote_min_neighbours < 1
+            or min(label_vote_min_support, label_vote_press_gap) < 0
+        ):
             raise ValueError(
                 f"label_vote_radius={label_vote_radius} must be >= 0, "
-                f"label_vote_min_neighbours={label_vote_min_neighbours} >= 1 and "
-                f"label_vote_min_support={label_vote_min_support} >= 0"
+                f"label_vote_min_neighbours={label_vote_min_neighbours} >= 1, "
+                f"label_vote_min_support={label_vote_min_support} and "
+                f"label_vote_press_gap={label_vote_press_gap} >= 0"
             )
         if not 0.0 < label_vote_min_agreement <= 1.0:
             raise ValueError(
@@ -176,6 +182,7 @@ class OnlineMapper:
             label_vote_min_neighbours,
             label_vote_min_agreement,
             label_vote_min_support,
+            label_vote_press_gap,
         )
         # The mapper's own generator: sampling is repeatable and resumable bit for bit.
         self.generator = torch.Generator().manual_seed(int(seed))
@@ -268,6 +275,8 @@ class OnlineMapper:
                     self._tensor(axis),
                     label.label if usable else -1,
                     label.confidence if usable else 0.0,
+                    finger=source,
+                    frame_index=frame.index,
                 )
                 self.tactile_points_total += len(keep)
         self.frames_seen += 1

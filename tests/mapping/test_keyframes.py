@@ -116,3 +116,57 @@ def test_label_vote_min_support_drops_a_lone_touch_until_another_agrees() -> Non
     assert touches.num_outvoted == 1 and touches.tensors()["labelled_points"].shape == (0, 3)
     touches.add(torch.full((4, 3), 0.001), axis, label=1, weight=0.9)
     assert touches.num_outvoted == 0 and touches.tensors()["labelled_points"].shape == (8, 3)
+
+
+def test_press_events_group_a_fingers_consecutive_frames() -> None:
+    from neuralfeels_sem.mapping.keyframes import press_events
+
+    fingers = ["index", "index", "ring", "index", "index", None, None]
+    frames = [1, 2, 2, 6, 7, 7, 7]
+    assert press_events(fingers, frames, gap=2).tolist() == [0, 0, 2, 3, 3, 5, 6]
+    assert press_events(fingers, frames, gap=0).tolist() == list(range(7))
+    with pytest.raises(ValueError, match="fingers"):
+        press_events(fingers, frames[:-1], gap=2)
+
+
+def test_frames_of_one_press_do_not_back_each_other() -> None:
+    from neuralfeels_sem.mapping.keyframes import outvoted_touches
+
+    # Three fabric presses and, in the same place, one press misread as plastic in 3 frames.
+    c = torch.tensor([[0.0, 0, 0], [0.002, 0, 0], [0, 0.002, 0]] + [[0.001, 0.001, 0]] * 3)
+    labels = torch.tensor([2, 2, 2, 0, 0, 0])
+    per_frame = outvoted_touches(c, labels, 0.01, 3, 0.25, min_support=1)
+    assert not per_frame.any()  # 2 of 5 neighbours agree with each plastic frame
+    events = torch.tensor([0, 1, 2, 3, 3, 3])
+    per_press = outvoted_touches(c, labels, 0.01, 3, 0.25, min_support=1, events=events)
+    assert per_press.tolist() == [False, False, False, True, True, True]
+    # A lone press seen in two frames has no support from another press.
+    lone = torch.tensor([[0.0, 0, 0], [0.001, 0, 0]])
+    same = torch.tensor([7, 7])
+    assert not outvoted_touches(lone, torch.tensor([1, 1]), 0.01, 3, 0.25, 1).any()
+    assert outvoted_touches(lone, torch.tensor([1, 1]), 0.01, 3, 0.25, 1, events=same).all()
+    with pytest.raises(ValueError, match="events"):
+        outvoted_touches(lone, torch.tensor([1, 1]), 0.01, 3, 0.25, 1, events=same[:1])
+
+
+def test_touch_buffer_counts_presses_and_keeps_them_in_its_state() -> None:
+    axis = torch.tensor([0.0, 0.0, 1.0])
+    touches = TouchBuffer(
+        torch.device("cpu"), vote_radius=0.01, vote_min_support=1, vote_press_gap=2
+    )
+    touches.add(torch.zeros(4, 3), axis, label=1, weight=0.9, finger="ring", frame_index=5)
+    touches.add(torch.full((4, 3), 0.001), axis, label=1, weight=0.9, finger="ring", frame_index=6)
+    assert touches.num_outvoted == 2  # one press, nobody else backs it
+    touches.add(torch.full((4, 3), 0.002), axis, label=1, weight=0.9, finger="thumb", frame_index=6)
+    assert touches.num_outvoted == 0  # another finger agrees
+    state = touches.state_dict()
+    assert state["fingers"] == ["ring", "ring", "thumb"] and state["frames"] == [5, 6, 6]
+    restored = TouchBuffer(
+        torch.device("cpu"), vote_radius=0.01, vote_min_support=1, vote_press_gap=2
+    )
+    restored.load_state_dict(state)
+    assert restored.num_outvoted == 0
+    # A checkpoint written before presses were recorded: every touch votes on its own.
+    old = {k: v for k, v in state.items() if k not in ("fingers", "frames")}
+    restored.load_state_dict(old)
+    assert restored.num_outvoted == 0 and restored.tensors()["labelled_points"].shape == (12, 3)
