@@ -3,7 +3,8 @@
 `plot_experiment` looks at what the jobs wrote (each job's metrics.json) and what the
 sweep varied (the aggregate's groups), and draws what applies:
 - `single_material_heatmap.png`, `single_material_bars.png`: classifier accuracy per
-  finger x material, mean over jobs, and bars with standard deviations (figure 4A/4B);
+  finger x material over all jobs' touches pooled (with the touch count; the mean over
+  jobs when they lack counts), and bars of the per-job mean ± std (figure 4A/4B);
 - `matching_curves.png`: every run's matching curve, final mean ± std in the title (figure 5A);
 - `ablation.png`: headline metrics per group (mean ± std), clustered by object;
 - `classifier_per_sensor.png`: from train/eval_classifier jobs' report.json, test accuracy
@@ -69,6 +70,27 @@ def finger_material_table(runs: list[dict]) -> tuple[list[str], list[str], np.nd
     return fingers, materials, values
 
 
+def pooled_finger_material(
+    runs: list[dict], fingers: list[str], materials: list[str]
+) -> tuple[np.ndarray, np.ndarray] | None:
+    """(accuracy % (F, M), judged touches (F, M)) over all runs' touches pooled; None
+    when a run lacks the counts. A cell judged on 2 touches in one run must not weigh
+    as much as one judged on 50 in another, as a mean of per-run accuracies makes it."""
+    correct = np.zeros((len(fingers), len(materials)))
+    judged = np.zeros_like(correct)
+    for run in runs:
+        counts = run["classifier_accuracy"].get("counts")
+        if not isinstance(counts, dict):
+            return None
+        for i, finger in enumerate(fingers):
+            for j, material in enumerate(materials):
+                cell = counts.get(finger, {}).get(material) or {}
+                correct[i, j] += float(cell.get("correct", 0))
+                judged[i, j] += float(cell.get("judged", 0))
+    with np.errstate(invalid="ignore", divide="ignore"):
+        return np.where(judged > 0, 100.0 * correct / judged, np.nan), judged
+
+
 def plot_finger_material(runs: list[dict], out_dir: Path, dpi: int = 120) -> list[Path]:
     fingers, materials, values = finger_material_table(runs)
     if not fingers or not materials:
@@ -80,19 +102,25 @@ def plot_finger_material(runs: list[dict], out_dir: Path, dpi: int = 120) -> lis
         sq = np.nansum((values - mean[..., None]) ** 2, axis=2)
         std = np.where(count > 1, np.sqrt(sq / np.maximum(count - 1, 1)), 0.0)
 
+    pooled = pooled_finger_material(runs, fingers, materials)
+    shown, title = mean, f"Classifier accuracy [%], mean of {len(runs)} runs"
+    if pooled is not None:
+        shown, title = pooled[0], f"Classifier accuracy [%], touches of {len(runs)} runs pooled"
     fig = Figure(figsize=(1.3 * len(materials) + 2.5, 0.8 * len(fingers) + 1.6))
     ax = fig.add_subplot()
-    image = ax.imshow(np.ma.masked_invalid(mean), cmap="viridis", vmin=0, vmax=100)
+    image = ax.imshow(np.ma.masked_invalid(shown), cmap="viridis", vmin=0, vmax=100)
     for i in range(len(fingers)):
         for j in range(len(materials)):
-            text = "n/a" if np.isnan(mean[i, j]) else f"{mean[i, j]:.0f}"
-            colour = "white" if np.isnan(mean[i, j]) or mean[i, j] < 60 else "black"
+            text = "n/a" if np.isnan(shown[i, j]) else f"{shown[i, j]:.0f}"
+            if pooled is not None and not np.isnan(shown[i, j]):
+                text += f"\nn={int(pooled[1][i, j])}"
+            colour = "white" if np.isnan(shown[i, j]) or shown[i, j] < 60 else "black"
             ax.text(j, i, text, ha="center", va="center", color=colour, fontsize=10)
     ax.set_xticks(range(len(materials)), materials)
     ax.set_yticks(range(len(fingers)), fingers)
     ax.set_xlabel("material")
     ax.set_ylabel("DIGIT sensor")
-    ax.set_title(f"Classifier accuracy [%], mean of {len(runs)} runs")
+    ax.set_title(title)
     fig.colorbar(image, ax=ax, label="accuracy [%]")
     fig.tight_layout()
     paths = [_save(fig, out_dir / "single_material_heatmap.png", dpi)]
@@ -312,6 +340,7 @@ __all__ = [
     "plot_classifier_sensors",
     "plot_experiment",
     "finger_material_table",
+    "pooled_finger_material",
     "plot_finger_material",
     "plot_groups",
     "plot_runs_matching",

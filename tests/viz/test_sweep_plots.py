@@ -182,3 +182,25 @@ def test_ablation_without_object_axis_names_the_shared_object(tmp_path: Path) ->
     assert {p.name for p in paths} == {"matching_curves.png", "ablation.png"}
     for path in paths:
         assert_png(path)
+
+
+def test_heatmap_pools_touches_rather_than_averaging_runs() -> None:
+    from neuralfeels_sem.viz.sweep_plots import pooled_finger_material
+
+    def run(correct: int, judged: int) -> dict:
+        cell = {"accuracy": correct / judged, "correct": correct, "judged": judged}
+        return {
+            "classifier_accuracy": {
+                "per_finger_material": {"ring": {"metal": correct / judged}},
+                "counts": {"ring": {"metal": cell}},
+            }
+        }
+
+    runs = [run(0, 1), run(99, 99)]  # one wrong touch in one run, 99 right in another
+    accuracy, judged = pooled_finger_material(runs, ["ring", "thumb"], ["metal"])
+    assert accuracy[0, 0] == pytest.approx(99.0) and judged[0, 0] == 100
+    assert np.isnan(accuracy[1, 0]) and judged[1, 0] == 0
+    _, _, values = finger_material_table(runs)
+    assert np.nanmean(values[0, 0]) == pytest.approx(50.0)  # what a mean of runs shows
+    without_counts = [{"classifier_accuracy": {"per_finger_material": {}}}]
+    assert pooled_finger_material(without_counts, ["ring"], ["metal"]) is None
