@@ -102,6 +102,7 @@ class MapperConfig:
     label_vote_min_agreement: float = 0.25
     label_vote_min_support: int = 1
     label_vote_press_gap: int = 2
+    label_vote_support_radius: float | None = 0.04
     window_recent: int = 4
     window_by_loss: int = 4
     max_keyframes: int = 200
@@ -140,6 +141,11 @@ class MapperConfig:
             )
         if self.truncation <= 0:
             raise ValueError(f"mapping.mapper.truncation={self.truncation} must be > 0")
+        if self.label_vote_support_radius is not None and self.label_vote_support_radius < 0:
+            raise ValueError(
+                f"mapping.mapper.label_vote_support_radius={self.label_vote_support_radius} "
+                "must be >= 0 (or null: the vote radius)"
+            )
         if not 0.0 < self.label_vote_min_agreement <= 1.0:
             raise ValueError(
                 f"mapping.mapper.label_vote_min_agreement={self.label_vote_min_agreement} must be in (0, 1]"

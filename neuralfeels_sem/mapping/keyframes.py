@@ -94,6 +94,24 @@ class KeyframeBuffer:
         self.losses = [float(v) for v in state["losses"]]
 
 
+def _neighbour_counts(
+    centroids: torch.Tensor, labels: torch.Tensor, radius: float, events: torch.Tensor | None
+) -> tuple[torch.Tensor, torch.Tensor]:
+    """(T,) other touches (presses, with `events`) within `radius`, and those that agree."""
+    near = torch.cdist(centroids, centroids) < radius
+    near.fill_diagonal_(False)
+    agreeing = near & (labels[None, :] == labels[:, None])
+    if events is None:
+        return near.sum(1), agreeing.sum(1)
+    near &= events[None, :] != events[:, None]
+    agreeing &= near
+    # (T, K) one-hot press membership: count the presses a touch sees, not their frames.
+    _, press = torch.unique(events, return_inverse=True)
+    members = torch.nn.functional.one_hot(press).to(centroids.dtype)
+    neighbours = ((near.to(centroids.dtype) @ members) > 0).sum(1)
+    return neighbours, ((agreeing.to(centroids.dtype) @ members) > 0).sum(1)
+
+
 def outvoted_touches(
     centroids: torch.Tensor,
     labels: torch.Tensor,
@@ -102,6 +120,7 @@ def outvoted_touches(
     min_agreement: float,
     min_support: int = 0,
     events: torch.Tensor | None = None,
+    support_radius: float | None = None,
 ) -> torch.Tensor:
     """(T,) bool: labelled touches that their labelled neighbours contradict or do not back.
 
@@ -109,9 +128,9 @@ def outvoted_touches(
     (centroid distance) and fewer than `min_agreement` of them carry its label: one
     confident misclassification among many consistent touches would otherwise paint its
     own patch. A touch with few neighbours, e.g. on a small patch of another material
-    with touches of its own, is kept, unless fewer than `min_support` of its neighbours
-    carry its label: a lone wrong touch where nobody else touched paints the largest
-    patch.
+    with touches of its own, is kept, unless fewer than `min_support` touches within
+    `support_radius` (default `radius`) carry its label: a lone wrong touch where nobody
+    else touched paints the largest patch.
 
     `events` (T,) groups touches into presses (see `press_events`): neighbours and
     agreeing neighbours are then counted as other presses, not frames. The frames of one
@@ -126,22 +145,13 @@ def outvoted_touches(
         return torch.zeros(len(labels), dtype=torch.bool, device=labels.device)
     if events is not None and events.shape != labels.shape:
         raise ValueError(f"expected (T,) events for {len(labels)} touches, got {events.shape}")
-    near = torch.cdist(centroids, centroids) < radius
-    near.fill_diagonal_(False)
-    agreeing = near & (labels[None, :] == labels[:, None])
-    if events is None:
-        neighbours, agree = near.sum(1), agreeing.sum(1)
-    else:
-        near &= events[None, :] != events[:, None]
-        agreeing &= near
-        # (T, K) one-hot press membership: count the presses a touch sees, not their frames.
-        _, press = torch.unique(events, return_inverse=True)
-        members = torch.nn.functional.one_hot(press).to(centroids.dtype)
-        neighbours = ((near.to(centroids.dtype) @ members) > 0).sum(1)
-        agree = ((agreeing.to(centroids.dtype) @ members) > 0).sum(1)
-    return ((neighbours >= min_neighbours) & (agree < min_agreement * neighbours)) | (
-        agree < min_support
-    )
+    neighbours, agree = _neighbour_counts(centroids, labels, radius, events)
+    outvoted = (neighbours >= min_neighbours) & (agree < min_agreement * neighbours)
+    if min_support > 0:
+        if support_radius is not None and support_radius != radius:
+            _, agree = _neighbour_counts(centroids, labels, support_radius, events)
+        outvoted |= agree < min_support
+    return outvoted
 
 
 def press_events(fingers: list[str | None], frames: list[int], gap: int) -> torch.Tensor:
@@ -183,6 +193,7 @@ class TouchBuffer:
         vote_min_agreement: float = 0.25,
         vote_min_support: int = 0,
         vote_press_gap: int = 0,
+        vote_support_radius: float | None = None,
     ) -> None:
         self.device = device
         self.vote_radius = float(vote_radius)
@@ -190,6 +201,9 @@ class TouchBuffer:
         self.vote_min_agreement = float(vote_min_agreement)
         self.vote_min_support = int(vote_min_support)
         self.vote_press_gap = int(vote_press_gap)  # 0: every touch votes on its own
+        self.vote_support_radius = (
+            None if vote_support_radius is None else float(vote_support_radius)
+        )
         self._num_outvoted = 0  # set with the cached tensors; read through num_outvoted
         self._points: list[torch.Tensor] = []
         self._axes: list[torch.Tensor] = []
@@ -272,6 +286,7 @@ class TouchBuffer:
             self.vote_min_agreement,
             self.vote_min_support,
             events,
+            self.vote_support_radius,
         )
         self._num_outvoted = int(outvoted.sum())
         sizes = torch.tensor([len(p) for p in self._points], device=labels.device)

@@ -91,6 +91,7 @@ class OnlineMapper:
         label_vote_min_agreement: float = 0.25,
         label_vote_min_support: int = 0,
         label_vote_press_gap: int = 0,
+        label_vote_support_radius: float | None = None,
         window_recent: int = 4,
         window_by_loss: int = 4,
         max_keyframes: int = 200,
@@ -172,6 +173,10 @@ class OnlineMapper:
                 f"label_vote_min_support={label_vote_min_support} and "
                 f"label_vote_press_gap={label_vote_press_gap} >= 0"
             )
+        if label_vote_support_radius is not None and label_vote_support_radius < 0:
+            raise ValueError(
+                f"label_vote_support_radius={label_vote_support_radius} must be >= 0 (or None)"
+            )
         if not 0.0 < label_vote_min_agreement <= 1.0:
             raise ValueError(
                 f"label_vote_min_agreement={label_vote_min_agreement} must be in (0, 1]"
@@ -183,6 +188,7 @@ class OnlineMapper:
             label_vote_min_agreement,
             label_vote_min_support,
             label_vote_press_gap,
+            label_vote_support_radius,
         )
         # The mapper's own generator: sampling is repeatable and resumable bit for bit.
         self.generator = torch.Generator().manual_seed(int(seed))

@@ -170,3 +170,22 @@ def test_touch_buffer_counts_presses_and_keeps_them_in_its_state() -> None:
     old = {k: v for k, v in state.items() if k not in ("fingers", "frames")}
     restored.load_state_dict(old)
     assert restored.num_outvoted == 0 and restored.tensors()["labelled_points"].shape == (12, 3)
+
+
+def test_support_is_looked_for_within_its_own_radius() -> None:
+    from neuralfeels_sem.mapping.keyframes import outvoted_touches
+
+    # Two fabric presses 3 cm apart: neither backs the other within the 2 cm vote radius.
+    c = torch.tensor([[0.0, 0, 0], [0.03, 0, 0], [0.2, 0, 0]])
+    labels = torch.tensor([2, 2, 0])
+    events = torch.tensor([0, 1, 2])
+    alone = outvoted_touches(c, labels, 0.02, 3, 0.25, 1, events)
+    assert alone.tolist() == [True, True, True]
+    wide = outvoted_touches(c, labels, 0.02, 3, 0.25, 1, events, support_radius=0.04)
+    assert wide.tolist() == [False, False, True]  # the far plastic press has no backing
+    # The contradiction rule keeps its own radius.
+    crowd = torch.tensor([[0.0, 0, 0], [0.001, 0, 0], [0.0, 0.001, 0], [0.001, 0.001, 0]])
+    wrong_in_crowd = outvoted_touches(
+        crowd, torch.tensor([0, 2, 2, 2]), 0.01, 3, 0.25, 1, support_radius=0.05
+    )
+    assert wrong_in_crowd.tolist() == [True, False, False, False]
