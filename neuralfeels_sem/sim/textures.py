@@ -208,14 +208,11 @@ class WoodTexture(MicroTexture):
             q = q0 + shift
             cell = np.floor(q)
             u = _cell_uniforms(cell.astype(np.int64), self._pore_salt + np.uint64(lattice))
-            across, along = _lerp(width, u[:, 0]), _lerp(length, u[:, 1])
-            # Squared distance to the pore's axis in units of its half-size, column by column
-            # (cheaper than on (N, 3) arrays); the centre keeps the whole pore in its cell.
-            d2 = np.zeros(len(q))
-            for axis, half in enumerate((across, across, along)):
-                centre = cell[:, axis] + half + u[:, 2 + axis] * (1.0 - 2.0 * half)
-                offset = (q[:, axis] - centre) / half
-                d2 += offset * offset
+            half = np.stack(
+                [_lerp(width, u[:, 0]), _lerp(width, u[:, 0]), _lerp(length, u[:, 1])], axis=1
+            )
+            centre = cell + half + u[:, 2:5] * (1.0 - 2.0 * half)
+            d2 = (((q - centre) / half) ** 2).sum(axis=1)
             there = (d2 < 1.0) & (u[:, 5] < chance)
             np.maximum(depth, np.sqrt(np.clip(1.0 - np.where(there, d2, 1.0), 0.0, 1.0)), out=depth)
         return -depth
@@ -232,10 +229,6 @@ def _lerp(bounds: tuple[float, float], t: np.ndarray) -> np.ndarray:
     return bounds[0] + (bounds[1] - bounds[0]) * t
 
 
-_PRIMES = tuple(np.uint64(p) for p in (0x9E3779B97F4A7C15, 0xC2B2AE3D27D4EB4F, 0x165667B19E3779F9))
-_MIX = (np.uint64(0xBF58476D1CE4E5B9), np.uint64(0x94D049BB133111EB))
-
-
 def _cell_uniforms(cells: np.ndarray, salt: np.uint64) -> np.ndarray:
     """(N, 6) uniform numbers in (0, 1), fixed per integer lattice cell (N, 3) and salt.
 
@@ -243,22 +236,15 @@ def _cell_uniforms(cells: np.ndarray, salt: np.uint64) -> np.ndarray:
     output bit), cut into six 10-bit fields.
     """
     h = np.full(len(cells), salt, dtype=np.uint64)
-    bits = np.ascontiguousarray(cells, dtype=np.int64).view(np.uint64)  # two's complement
-    for axis, prime in enumerate(_PRIMES):
-        h ^= bits[:, axis] * prime
+    for axis, prime in enumerate((0x9E3779B97F4A7C15, 0xC2B2AE3D27D4EB4F, 0x165667B19E3779F9)):
+        h ^= cells[:, axis].astype(np.uint64) * np.uint64(prime)
         h ^= h >> np.uint64(30)
-        h *= _MIX[0]
+        h *= np.uint64(0xBF58476D1CE4E5B9)
         h ^= h >> np.uint64(27)
-        h *= _MIX[1]
+        h *= np.uint64(0x94D049BB133111EB)
         h ^= h >> np.uint64(31)
-    # Fields read bits 0-59 only, so a signed view (fast to convert to float) reads the same.
-    signed = h.view(np.int64)
-    out = np.empty((len(cells), 6))
-    for k in range(6):
-        out[:, k] = (signed >> (10 * k)) & 1023
-    out += 0.5
-    out /= 1024.0
-    return out
+    fields = [(h >> np.uint64(10 * k)) & np.uint64(1023) for k in range(6)]
+    return (np.stack(fields, axis=1).astype(np.float64) + 0.5) / 1024.0
 
 
 class MetalTexture(MicroTexture):
