@@ -23,15 +23,3 @@ python run.py task=collect_tactile dataset.root=data/tactile/fresh_778_edge task
 python -m neuralfeels_sem.sim.rig_touches data/tactile/rig_seed5 --seed 5
 python -m neuralfeels_sem.sim.rig_touches data/tactile/rig_seed0 --seed 0
 python run.py task=eval_classifier dataset.root=data/tactile/rig_seed0
-# stage5 (cosine fine-tune of stage 4 on sim_v4, 14 epochs; not shipped on its own, its best.pt starts stage 6)
-OMP_NUM_THREADS=2 python run.py task=train_classifier dataset.root=data/tactile/sim_v4 classifier.input_size=112 classifier.crop_px=112 task.batch_size=32 task.export_fp16=true classifier.device=cpu classifier.weights=neuralfeels_sem/assets/classifier/classifier.pt task.lr=3e-4 task.lr_schedule=cosine task.max_epochs=14 task.patience=14 hydra.run.dir=RUN5
-# collect_stage6: the same kind of presses, after wood gained pores (sim/textures.py), seed 200
-python run.py task=collect_tactile dataset.root=data/tactile/sim_v5 task.samples_per_class_per_sensor=300 task.edge_press_fraction=0.5 seed=200
-# stage6 (12 epochs, cosine; the best epoch by validation, 10, is exported: the shipped classifier.pt)
-OMP_NUM_THREADS=2 python run.py task=train_classifier dataset.root=data/tactile/sim_v5 classifier.input_size=112 classifier.crop_px=112 task.batch_size=32 task.export_fp16=true classifier.device=cpu classifier.weights=RUN5/best.pt task.lr=3e-4 task.lr_schedule=cosine task.max_epochs=12 task.patience=12 hydra.run.dir=RUN6
-# held-out sets with the new wood (scored with task=eval_classifier dataset.root=...)
-python run.py task=collect_tactile dataset.root=data/tactile/fresh_779_v5 task.samples_per_class_per_sensor=100 seed=779
-python run.py task=collect_tactile dataset.root=data/tactile/fresh_777_v5 task.samples_per_class_per_sensor=25 seed=777
-python run.py task=collect_tactile dataset.root=data/tactile/fresh_778_edge_v5 task.samples_per_class_per_sensor=25 task.edge_press_fraction=0.5 seed=778
-python -m neuralfeels_sem.sim.rig_touches data/tactile/rig_seed5_v5 --seed 5
-python -m neuralfeels_sem.sim.rig_touches data/tactile/rig_seed0_v5 --seed 0
