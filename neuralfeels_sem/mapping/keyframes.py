@@ -95,10 +95,13 @@ class KeyframeBuffer:
 
 
 def _neighbour_counts(
-    centroids: torch.Tensor, labels: torch.Tensor, radius: float, events: torch.Tensor | None
+    distances: torch.Tensor, labels: torch.Tensor, radius: float, events: torch.Tensor | None
 ) -> tuple[torch.Tensor, torch.Tensor]:
-    """(T,) other touches (presses, with `events`) within `radius`, and those that agree."""
-    near = torch.cdist(centroids, centroids) < radius
+    """(T,) other touches (presses, with `events`) within `radius`, and those that agree.
+
+    `distances` (T, T) between the touches' centroids.
+    """
+    near = distances < radius
     near.fill_diagonal_(False)
     agreeing = near & (labels[None, :] == labels[:, None])
     if events is None:
@@ -107,9 +110,9 @@ def _neighbour_counts(
     agreeing &= near
     # (T, K) one-hot press membership: count the presses a touch sees, not their frames.
     _, press = torch.unique(events, return_inverse=True)
-    members = torch.nn.functional.one_hot(press).to(centroids.dtype)
-    neighbours = ((near.to(centroids.dtype) @ members) > 0).sum(1)
-    return neighbours, ((agreeing.to(centroids.dtype) @ members) > 0).sum(1)
+    members = torch.nn.functional.one_hot(press).to(distances.dtype)
+    neighbours = ((near.to(distances.dtype) @ members) > 0).sum(1)
+    return neighbours, ((agreeing.to(distances.dtype) @ members) > 0).sum(1)
 
 
 def outvoted_touches(
@@ -145,11 +148,12 @@ def outvoted_touches(
         return torch.zeros(len(labels), dtype=torch.bool, device=labels.device)
     if events is not None and events.shape != labels.shape:
         raise ValueError(f"expected (T,) events for {len(labels)} touches, got {events.shape}")
-    neighbours, agree = _neighbour_counts(centroids, labels, radius, events)
+    distances = torch.cdist(centroids, centroids)
+    neighbours, agree = _neighbour_counts(distances, labels, radius, events)
     outvoted = (neighbours >= min_neighbours) & (agree < min_agreement * neighbours)
     if min_support > 0:
         if support_radius is not None and support_radius != radius:
-            _, agree = _neighbour_counts(centroids, labels, support_radius, events)
+            _, agree = _neighbour_counts(distances, labels, support_radius, events)
         outvoted |= agree < min_support
     return outvoted
 
