@@ -89,6 +89,7 @@ def test_wrong_type_fails_at_compose() -> None:
         ["materials=[plastic]"],
         ["task=collect_tactile", "task.edge_press_fraction=1.5"],
         ["task=collect_tactile", "task.edge_tilt_deg=[40,15]"],
+        ["task=collect_tactile", "task.feature_press_fraction=-0.1"],
         ["task=train_classifier", "task.lr_schedule=step"],
         ["task=train_classifier", "task.min_lr_ratio=2"],
         ["mapping.mapper.label_vote_min_agreement=0"],

@@ -134,6 +134,9 @@ class CollectTactileTaskConfig:
     # strip-shaped imprints the rig's tilted pads make on narrow objects; 0 = all centred.
     edge_press_fraction: float = 0.0
     edge_tilt_deg: list[float] = field(default_factory=lambda: [15.0, 40.0])
+    # Share of touches placed on a rim, edge or tight bend (pressed along the bisector of
+    # its faces): the ridge imprints of a cup's rim; drawn independently of edge presses.
+    feature_press_fraction: float = 0.0
     min_purity: float = 0.95  # share of contact pixels that must be the labelled material
     min_contact_px: int = 400
     overwrite: bool = False  # false: refuse to write into a non-empty root
@@ -157,6 +160,10 @@ class CollectTactileTaskConfig:
         if not 0.0 <= self.edge_press_fraction <= 1.0:
             raise ValueError(
                 f"task.edge_press_fraction={self.edge_press_fraction} must be in [0, 1]"
+            )
+        if not 0.0 <= self.feature_press_fraction <= 1.0:
+            raise ValueError(
+                f"task.feature_press_fraction={self.feature_press_fraction} must be in [0, 1]"
             )
         if (
             len(self.edge_tilt_deg) != 2

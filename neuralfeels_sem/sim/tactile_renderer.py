@@ -411,25 +411,34 @@ def contact_sheet(
     radius_m: float = 0.025,
     press_m: float = 1.0e-3,
     seed: int = 0,
+    side_views: tuple[str, ...] = ("wood",),
 ) -> Path:
     """Write a PNG: the no-contact background, then each material pressed into a sphere.
 
+    Each material is pressed at the pole (object z, wood's end grain); the materials in
+    `side_views` are pressed on the equator too, where the wood runs along its grain.
     Used for the README figure (docs/images/tactile_materials.png) and to eyeball realism.
     """
     import trimesh  # only this figure needs a primitive mesh
 
     mesh = trimesh.creation.icosphere(subdivisions=5, radius=radius_m)
-    world_T_sensor = pose_pressing(
-        np.array([0.0, 0.0, radius_m]), np.array([0.0, 0.0, 1.0]), press_m
-    )
+    presses = {
+        "": pose_pressing(np.array([0.0, 0.0, radius_m]), np.array([0.0, 0.0, 1.0]), press_m),
+        " (side)": pose_pressing(
+            np.array([radius_m, 0.0, 0.0]), np.array([1.0, 0.0, 0.0]), press_m
+        ),
+    }
     panels, names = [], ["background"]
     for i, name in enumerate(materials):
         obj = MaterialObject(name, mesh, np.full(len(mesh.faces), i), materials)
         renderer = DigitRenderer(obj, seed=seed)
         if not panels:
             panels.append(renderer.background_image)
-        panels.append(renderer.render(np.eye(4), world_T_sensor).image)
-        names.append(name)
+        for suffix, world_T_sensor in presses.items():
+            if suffix and name not in side_views:
+                continue
+            panels.append(renderer.render(np.eye(4), world_T_sensor).image)
+            names.append(name + suffix)
         renderer.close()
     sheet = np.concatenate(
         [np.pad(p, ((0, 0), (2, 2), (0, 0)), constant_values=255) for p in panels], axis=1

@@ -6,9 +6,13 @@ metres, so the pattern is fixed to the object and moves with it. A DIGIT resolve
 is what makes materials look like themselves through the gel:
 
 - fabric: plain weave of crossing threads (1 mm period) plus fuzz; soft.
-- wood: growth rings (distorted, asymmetric early/late wood) and long fibres along the
-  grain axis (object z); stiff.
-- metal: fine brushed lines along the object x axis, very little relief; stiff, shiny.
+- wood: growth rings (distorted, asymmetric early/late wood), long fibres along the
+  grain axis (object z) and open pores (vessels: pits 0.2 mm wide, 1-1.5 mm long along
+  the grain, densest in the early wood, as in oak or ash); stiff. The pores make wood
+  look like wood on every cut: on a face running along the rings, rings and fibres alone
+  are parallel lines, like brushed metal.
+- metal: fine, faint brushed lines along the object x axis (finer and a third as deep as
+  wood's fibres), very little relief; stiff, shiny.
 - plastic: smooth with a faint moulded stipple of sparse bumps; slightly compliant.
 - anything else: generic smooth surface with faint isotropic roughness.
 
@@ -147,12 +151,20 @@ class FabricTexture(MicroTexture):
 
 
 class WoodTexture(MicroTexture):
-    """Growth rings around the object z axis (distorted) plus fibres running along z."""
+    """Growth rings around the object z axis (distorted), fibres along z, and open pores."""
 
     name = "wood"
     ring_period_m = 1.3e-3
     ring_height_m = 28e-6
     fibre_height_m = 9e-6
+    pore_depth_m = 35e-6
+    # Pores live in the cells of lattices aligned with the grain (see `pores`).
+    pore_cell_m = (0.6e-3, 0.6e-3, 2.0e-3)
+    pore_half_width_m = (0.10e-3, 0.16e-3)
+    pore_half_length_m = (0.35e-3, 0.75e-3)
+    # Chance of a pore in a cell: ring-porous wood has its vessels in the early wood.
+    pore_chance_early, pore_chance_late = 0.75, 0.35
+    early_wood_share = 0.45
 
     def __init__(self, seed: int = 0, scale: float = 1.0) -> None:
         super().__init__(seed, scale)
@@ -165,26 +177,106 @@ class WoodTexture(MicroTexture):
         self._fibres = _Waves.random(
             self._rng, 6, (0.15e-3, 0.4e-3), plane_normal=np.array([0.0, 0.0, 1.0])
         )
+        self._pore_salt = np.uint64(self._rng.integers(1, 2**62))
+        self._pore_offset = self._rng.uniform(0.0, 1.0, 3)  # lattice not tied to round coordinates
 
-    def _relief(self, points: np.ndarray, normal: np.ndarray | None) -> np.ndarray:
+    def _ring_phase(self, points: np.ndarray) -> np.ndarray:
+        """Position within the growth ring, 0 (start of early wood) .. 1 (end of late wood)."""
         r = np.hypot(points[:, 0] - self._centre[0], points[:, 1] - self._centre[1])
         r = r + 0.3e-3 * self._distort(points)
-        f = np.mod(r / self.ring_period_m, 1.0)
+        return np.mod(r / self.ring_period_m, 1.0)
+
+    def pores(self, points: np.ndarray, ring_phase: np.ndarray | None = None) -> np.ndarray:
+        """(N,) pore profile: 0 outside pores, down to -1 on a pore's axis.
+
+        Pores sit in the cells of two lattices offset by half a cell, at most one per
+        cell and wholly inside it, so a point needs only its own cell in each lattice
+        (one lattice alone would leave faces along its cell walls without pores).
+        `ring_phase` saves recomputing it.
+        """
+        points = _check_points(points)
+        if ring_phase is None:
+            ring_phase = self._ring_phase(points)
+        # Early wood only: a pore stops where the late wood of its ring starts.
+        chance = np.where(
+            ring_phase < self.early_wood_share, self.pore_chance_early, self.pore_chance_late
+        )
+        width = np.asarray(self.pore_half_width_m) / self.pore_cell_m[0]
+        length = np.asarray(self.pore_half_length_m) / self.pore_cell_m[2]
+        q0 = points.astype(np.float64) / np.asarray(self.pore_cell_m) + self._pore_offset
+        depth = np.zeros(len(points))
+        for lattice, shift in enumerate((0.0, 0.5)):
+            q = q0 + shift
+            cell = np.floor(q)
+            u = _cell_uniforms(cell.astype(np.int64), self._pore_salt + np.uint64(lattice))
+            across, along = _lerp(width, u[:, 0]), _lerp(length, u[:, 1])
+            # Squared distance to the pore's axis in units of its half-size, column by column
+            # (cheaper than on (N, 3) arrays); the centre keeps the whole pore in its cell.
+            d2 = np.zeros(len(q))
+            for axis, half in enumerate((across, across, along)):
+                centre = cell[:, axis] + half + u[:, 2 + axis] * (1.0 - 2.0 * half)
+                offset = (q[:, axis] - centre) / half
+                d2 += offset * offset
+            there = (d2 < 1.0) & (u[:, 5] < chance)
+            np.maximum(depth, np.sqrt(np.clip(1.0 - np.where(there, d2, 1.0), 0.0, 1.0)), out=depth)
+        return -depth
+
+    def _relief(self, points: np.ndarray, normal: np.ndarray | None) -> np.ndarray:
+        f = self._ring_phase(points)
         # Early wood rises slowly, late wood drops sharply: an asymmetric ring profile.
         ring = f**3 - 0.5
-        return self.ring_height_m * ring + self.fibre_height_m * self._fibres(points)
+        grain = self.ring_height_m * ring + self.fibre_height_m * self._fibres(points)
+        return grain + self.pore_depth_m * self.pores(points, f)
+
+
+def _lerp(bounds: tuple[float, float], t: np.ndarray) -> np.ndarray:
+    return bounds[0] + (bounds[1] - bounds[0]) * t
+
+
+_PRIMES = tuple(np.uint64(p) for p in (0x9E3779B97F4A7C15, 0xC2B2AE3D27D4EB4F, 0x165667B19E3779F9))
+_MIX = (np.uint64(0xBF58476D1CE4E5B9), np.uint64(0x94D049BB133111EB))
+
+
+def _cell_uniforms(cells: np.ndarray, salt: np.uint64) -> np.ndarray:
+    """(N, 6) uniform numbers in (0, 1), fixed per integer lattice cell (N, 3) and salt.
+
+    One 64-bit hash per cell (splitmix64 rounds, so every input bit reaches every
+    output bit), cut into six 10-bit fields.
+    """
+    h = np.full(len(cells), salt, dtype=np.uint64)
+    bits = np.ascontiguousarray(cells, dtype=np.int64).view(np.uint64)  # two's complement
+    for axis, prime in enumerate(_PRIMES):
+        h ^= bits[:, axis] * prime
+        h ^= h >> np.uint64(30)
+        h *= _MIX[0]
+        h ^= h >> np.uint64(27)
+        h *= _MIX[1]
+        h ^= h >> np.uint64(31)
+    # Fields read bits 0-59 only, so a signed view (fast to convert to float) reads the same.
+    signed = h.view(np.int64)
+    out = np.empty((len(cells), 6))
+    for k in range(6):
+        out[:, k] = (signed >> (10 * k)) & 1023
+    out += 0.5
+    out /= 1024.0
+    return out
 
 
 class MetalTexture(MicroTexture):
-    """Fine brushed lines along the object x axis; almost flat."""
+    """Fine, faint brushed lines along the object x axis; almost flat.
+
+    A brushed finish is finer and shallower than wood's fibres (0.15-0.4 mm, 9 um): its
+    lines sit at the finest period a DIGIT still resolves, a third of the fibres' relief.
+    """
 
     name = "metal"
-    line_height_m = 6e-6
+    line_height_m = 3e-6
+    line_wavelength_m = (0.15e-3, 0.3e-3)
 
     def __init__(self, seed: int = 0, scale: float = 1.0) -> None:
         super().__init__(seed, scale)
         self._lines = _Waves.random(
-            self._rng, 8, (0.15e-3, 0.6e-3), plane_normal=np.array([1.0, 0.0, 0.0])
+            self._rng, 8, self.line_wavelength_m, plane_normal=np.array([1.0, 0.0, 0.0])
         )
 
     def _relief(self, points: np.ndarray, normal: np.ndarray | None) -> np.ndarray:

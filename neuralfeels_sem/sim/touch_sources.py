@@ -2,7 +2,8 @@
 
 For every material: simple shapes of several curvatures made entirely of it (spheres,
 cylinders, boxes, a capsule), plus the shipped library objects that have regions of it.
-`sample_touch` draws a random surface point of a given material on one of them.
+`sample_touch` draws a random surface point of a given material on one of them;
+`sample_feature_touch` draws one on a rim, edge or tight bend (see `FeatureEdges`).
 """
 
 from __future__ import annotations
@@ -63,6 +64,76 @@ def library_objects(names: Sequence[str], class_names: Sequence[str]) -> list[Ma
 class Touch:
     point: np.ndarray  # (3,) object frame
     normal: np.ndarray  # (3,) outward unit
+
+
+# An edge between two faces is a feature (rim, corner, bead) where the surface turns by
+# more than this angle, or bends tighter than this radius (mesh-resolution independent).
+FEATURE_MIN_ANGLE_DEG = 35.0
+FEATURE_MAX_RADIUS_M = 0.008
+
+
+@dataclass(frozen=True)
+class FeatureEdges:
+    """The mesh edges where the surface turns sharply: where a fingertip presses a rim.
+
+    Area-uniform touches almost never land on a 4 mm rim or a box edge, yet the rig's
+    fingers press them often (a candle holder's cup rim, a shaker's lid lip), and such an
+    imprint is a ridge with little texture. Per edge: its two end points, the bisector of
+    its two faces' normals, its length and the material label shared by both faces (-1
+    where they differ, never sampled).
+    """
+
+    start: np.ndarray  # (E, 3)
+    end: np.ndarray  # (E, 3)
+    normal: np.ndarray  # (E, 3) unit bisector of the two face normals
+    length: np.ndarray  # (E,)
+    label: np.ndarray  # (E,)
+
+    @classmethod
+    def of(
+        cls,
+        obj: MaterialObject,
+        min_angle_deg: float = FEATURE_MIN_ANGLE_DEG,
+        max_radius_m: float = FEATURE_MAX_RADIUS_M,
+    ) -> FeatureEdges:
+        mesh = obj.mesh
+        pairs = mesh.face_adjacency  # (E, 2) faces sharing an edge
+        angles = mesh.face_adjacency_angles  # (E,) radians between the face normals
+        centres = mesh.triangles_center
+        # Curvature ~ turning angle over the distance between the two faces' centres.
+        gap = np.linalg.norm(centres[pairs[:, 0]] - centres[pairs[:, 1]], axis=1)
+        bend_radius = gap / np.maximum(angles, 1e-9)
+        sharp = (angles >= np.deg2rad(min_angle_deg)) | (bend_radius <= max_radius_m)
+        labels = obj.face_labels[pairs]
+        label = np.where(labels[:, 0] == labels[:, 1], labels[:, 0], -1)
+        edges = mesh.face_adjacency_edges
+        normal = mesh.face_normals[pairs[:, 0]] + mesh.face_normals[pairs[:, 1]]
+        normal /= np.maximum(np.linalg.norm(normal, axis=1, keepdims=True), 1e-12)
+        start, end = mesh.vertices[edges[:, 0]], mesh.vertices[edges[:, 1]]
+        keep = sharp & (label >= 0)
+        return cls(
+            start=start[keep],
+            end=end[keep],
+            normal=normal[keep],
+            length=np.linalg.norm(end - start, axis=1)[keep],
+            label=label[keep],
+        )
+
+    def has(self, label: int) -> bool:
+        return bool((self.label == label).any())
+
+
+def sample_feature_touch(edges: FeatureEdges, label: int, rng: np.random.Generator) -> Touch | None:
+    """A length-uniform random point on the feature edges labelled `label`, pressed along
+    the bisector of the edge's faces; None when the object has no such edge."""
+    candidates = np.flatnonzero(edges.label == label)
+    if candidates.size == 0:
+        return None
+    weights = edges.length[candidates]
+    edge = candidates[rng.choice(candidates.size, p=weights / weights.sum())]
+    t = rng.uniform()
+    point = edges.start[edge] + t * (edges.end[edge] - edges.start[edge])
+    return Touch(point=point, normal=np.asarray(edges.normal[edge], np.float64))
 
 
 def sample_touch(obj: MaterialObject, label: int, rng: np.random.Generator) -> Touch:

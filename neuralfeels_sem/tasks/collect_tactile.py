@@ -13,6 +13,11 @@ sensor axis and a small tilt; a frame is kept when its contact is large enough a
 least `min_purity` of the contact pixels are that material. A share
 `edge_press_fraction` of presses is made with a gel edge instead (sensor tilted by
 `edge_tilt_deg`), giving the strip imprints of the rig's tilted pads on narrow objects.
+A share `feature_press_fraction` of touches is placed on a rim, edge or tight bend of the
+object (`FeatureEdges`: a cup's rim, a lid's lip, a box's edge), pressed along the
+bisector of the two faces: the ridge imprints area-uniform touches almost never give. The
+two are drawn independently (a feature can be pressed with the gel's edge). The manifest
+records each image's kind of press (`presses`: centre, edge, feature, feature+edge).
 """
 
 from __future__ import annotations
@@ -32,7 +37,13 @@ from tqdm import tqdm
 from neuralfeels_sem.errors import ConfigError, DataError
 from neuralfeels_sem.sensors.sim.sim_sensor import finger_seed
 from neuralfeels_sem.sim.digit_geometry import GEL_HEIGHT_M, GEL_WIDTH_M, MAX_PENETRATION_M
-from neuralfeels_sem.sim.touch_sources import library_objects, primitive_objects, sample_touch
+from neuralfeels_sem.sim.touch_sources import (
+    FeatureEdges,
+    library_objects,
+    primitive_objects,
+    sample_feature_touch,
+    sample_touch,
+)
 from neuralfeels_sem.utils.geometry import rotation_matrix
 
 log = logging.getLogger(__name__)
@@ -123,20 +134,33 @@ def run(cfg: DictConfig) -> dict:
     max_tilt = np.deg2rad(float(task.max_tilt_deg))
     edge_fraction = float(task.edge_press_fraction)
     edge_tilt = np.deg2rad(np.asarray(task.edge_tilt_deg, dtype=np.float64))
+    feature_fraction = float(task.feature_press_fraction)
     edge_presses = 0
+    presses: dict[str, str] = {}
     progress = tqdm(total=sum(len(j) for j in jobs.values()), desc="collect_tactile", unit="img")
     for source_index in sorted(jobs):
         obj = sources[source_index]
         renderers = {
             s: DigitRenderer(obj, seed=finger_seed(seed, s), **tactile_options) for s in sensors
         }
+        features = FeatureEdges.of(obj) if feature_fraction > 0.0 else None
         try:
             for sensor, c, k in jobs[source_index]:
                 sample_rng = np.random.default_rng(
                     [seed, source_index, sensors.index(sensor), c, k]
                 )
                 for _ in range(TRIES_PER_SAMPLE):
-                    touch = sample_touch(obj, c, sample_rng)
+                    # Drawn only when enabled, so data sets without feature presses repeat.
+                    on_feature = (
+                        features is not None
+                        and features.has(c)
+                        and sample_rng.uniform() < feature_fraction
+                    )
+                    touch = (
+                        sample_feature_touch(features, c, sample_rng)
+                        if on_feature
+                        else sample_touch(obj, c, sample_rng)
+                    )
                     mean = firmness.get(sensor, 0.0015)
                     press = float(
                         np.clip(
@@ -176,6 +200,8 @@ def run(cfg: DictConfig) -> dict:
                     )
                 path = root / sensor / class_names[c] / f"{k:05d}.png"
                 cv2.imwrite(str(path), cv2.cvtColor(render.image, cv2.COLOR_RGB2BGR))
+                kind = "+".join(["feature"] * on_feature + ["edge"] * edge) or "centre"
+                presses[path.relative_to(root).as_posix()] = kind
                 counts[sensor][class_names[c]] += 1
                 edge_presses += int(edge)
                 used[sensor][class_names[c]][obj.name] += 1
@@ -209,6 +235,11 @@ def run(cfg: DictConfig) -> dict:
         "edge_press_fraction": edge_fraction,
         "edge_tilt_deg": [float(v) for v in task.edge_tilt_deg],
         "edge_presses": edge_presses,
+        "feature_press_fraction": feature_fraction,
+        "press_counts": {
+            k: sum(v == k for v in presses.values()) for k in sorted(set(presses.values()))
+        },
+        "presses": dict(sorted(presses.items())),
         "min_purity": float(task.min_purity),
         "min_contact_px": int(task.min_contact_px),
         "image_size": [320, 240],

@@ -24,11 +24,13 @@ from neuralfeels_sem.perception.classifier import MaterialClassifier
 from neuralfeels_sem.perception.classifier.dataset import (
     load_backgrounds,
     load_samples,
+    press_kinds,
     resolve_path,
     scan_dataset,
 )
 from neuralfeels_sem.perception.classifier.evaluate import (
     gated_report,
+    per_press_kind,
     predict_probs_in_batches,
     test_report,
     write_report,
@@ -71,6 +73,9 @@ def run(cfg: DictConfig) -> dict:
         report["gated"] = gated_report(
             loaded.labels, probs, shares, classifier.min_confidence, classifier.max_edge_share
         )
+    kinds = press_kinds(data.root, loaded.paths)
+    if kinds is not None:
+        report["per_press_kind"] = per_press_kind(loaded.labels, pred, kinds)
     report["val_accuracy"] = ckpt.meta.get("val_accuracy")
     report["checkpoint"] = str(classifier.checkpoint_path)
     report["data"] = {

@@ -29,11 +29,13 @@ from neuralfeels_sem.perception.classifier.dataset import (
     class_counts,
     load_backgrounds,
     load_samples,
+    press_kinds,
     resolve_path,
     scan_dataset,
     stratified_split,
 )
 from neuralfeels_sem.perception.classifier.evaluate import (
+    per_press_kind,
     predict_in_batches,
     test_report,
     write_report,
@@ -168,6 +170,9 @@ def run(cfg: DictConfig) -> dict:
     test_pred = predict_in_batches(predict, loaded.images[te], 64, "test")
     report = test_report(loaded.labels[te], test_pred, loaded.sensors[te], class_names)
     report["val_accuracy"] = float((val_pred == loaded.labels[va]).mean())
+    kinds = press_kinds(data.root, loaded.paths)
+    if kinds is not None:
+        report["per_press_kind"] = per_press_kind(loaded.labels[te], test_pred, kinds[te])
     report["counts"] = {"train": len(tr), "val": len(va), "test": len(te)}
     report["data"] = {
         "root": str(root),

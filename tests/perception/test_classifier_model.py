@@ -33,6 +33,23 @@ def test_model_outputs_one_logit_per_class(num_classes: int) -> None:
     assert out.shape == (2, num_classes)
 
 
+def test_fast_layout_gives_the_library_models_numbers() -> None:
+    torch.manual_seed(0)
+    model = build_model(4)
+    reference = EfficientNet.from_name("efficientnet-b0", num_classes=4)
+    reference.load_state_dict(model.state_dict())
+    x = torch.rand(3, 3, 64, 64)
+    for train_mode in (False, True):
+        model.train(train_mode)
+        reference.train(train_mode)
+        with torch.no_grad():
+            torch.manual_seed(1)  # the same dropout and drop-connect draws in train mode
+            ours = model(x)
+            torch.manual_seed(1)
+            torch.testing.assert_close(ours, reference(x), rtol=1e-4, atol=1e-4)
+    assert model._conv_stem.weight.is_contiguous(memory_format=torch.channels_last)
+
+
 def test_backbone_loads_from_local_file_and_head_stays_new(imagenet_like) -> None:
     path, state = imagenet_like
     torch.manual_seed(0)

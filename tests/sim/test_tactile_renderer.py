@@ -278,7 +278,10 @@ def test_contact_sheet_writes_a_png(tmp_path) -> None:
 
     path = contact_sheet(tmp_path / "sheet.png")
     image = cv2.imread(str(path))
-    assert image is not None and image.shape[0] >= 320 and image.shape[1] >= 5 * 240
+    # background, four materials at the pole, wood on the side: 244-pixel panels
+    assert image is not None and image.shape[0] >= 320 and image.shape[1] == 6 * 244
+    plain = cv2.imread(str(contact_sheet(tmp_path / "plain.png", side_views=())))
+    assert plain.shape[1] == 5 * 244
 
 
 def test_depth_smoothing_hides_mesh_facets_but_not_ground_truth() -> None:

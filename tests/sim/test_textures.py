@@ -6,6 +6,7 @@ import cv2
 import numpy as np
 import pytest
 import trimesh
+from scipy import ndimage
 
 from neuralfeels_sem.errors import ConfigError
 from neuralfeels_sem.objects.material_object import MaterialObject
@@ -93,13 +94,63 @@ def test_fabric_weave_repeats_every_two_threads() -> None:
     )  # over/under swaps
 
 
+def test_metal_brushing_is_finer_and_fainter_than_wood_fibres() -> None:
+    metal = MetalTexture(seed=0)
+    assert max(metal.line_wavelength_m) < 0.4e-3 and min(metal.line_wavelength_m) >= 0.15e-3
+    # The finest lines span two DIGIT pixels (75 um) or more: no aliasing in the render.
+    assert metal.line_height_m <= WoodTexture.fibre_height_m / 2
+    heights = metal.height(_points(20000))
+    assert 1e-6 < heights.std() < 4e-6
+
+
 def test_wood_grain_is_anisotropic_along_the_fibres() -> None:
     tex = WoodTexture(seed=0)
+    tex.pore_depth_m = 0.0  # rings and fibres alone are straight along the grain
     t = np.linspace(0, 0.003, 200, dtype=np.float32)
     start = np.array([0.012, 0.004, 0.0], np.float32)
     along_z = tex.height(start + t[:, None] * np.array([0, 0, 1], np.float32))
     along_x = tex.height(start + t[:, None] * np.array([1, 0, 0], np.float32))
     assert along_z.std() < 0.02 * along_x.std()
+
+
+def _ring_tangent_patch(tex: WoodTexture, size_m: float = 0.008) -> np.ndarray:
+    """Points on a cylinder about the pith: a face running along the growth rings."""
+    radius = 5.3 * tex.ring_period_m  # early wood of the sixth ring
+    angle, z = np.meshgrid(np.linspace(0, size_m / radius, 120), np.linspace(0, size_m, 120))
+    cx, cy = tex._centre
+    return (
+        np.stack([cx + radius * np.cos(angle), cy + radius * np.sin(angle), z], axis=-1)
+        .reshape(-1, 3)
+        .astype(np.float32)
+    )
+
+
+def test_wood_pores_are_pits_elongated_along_the_grain_on_every_cut() -> None:
+    tex = WoodTexture(seed=0)
+    # On a face along the rings, rings and fibres are parallel lines (like brushed
+    # metal); the pores are what still marks it as wood.
+    patch = _ring_tangent_patch(tex)
+    pores = tex.pores(patch)
+    assert pores.max() == 0.0 and pores.min() < -0.9
+    assert 0.03 < (pores < 0).mean() < 0.3
+    # Each pit is a dash along the grain: 0.7-1.5 mm long, 0.2-0.3 mm wide.
+    pits, count = ndimage.label(pores.reshape(120, 120) < 0)  # rows: z, columns: across
+    spans = np.array(
+        [(s[0].stop - s[0].start, s[1].stop - s[1].start) for s in ndimage.find_objects(pits)]
+    )
+    assert count >= 5
+    assert np.median(spans[:, 0] / spans[:, 1]) > 2.5
+    tex.pore_depth_m = 0.0
+    without = tex.height(patch)
+    tex.pore_depth_m = WoodTexture.pore_depth_m
+    np.testing.assert_allclose(
+        tex.height(patch) - without, WoodTexture.pore_depth_m * pores, atol=1e-9
+    )
+    # Pores are denser in the early wood than in the late wood of a ring.
+    cut = _points(40000, seed=3)
+    phase = tex._ring_phase(cut)
+    holes = tex.pores(cut) < 0
+    assert holes[phase < 0.3].mean() > 1.5 * holes[phase > 0.6].mean()
 
 
 def test_plastic_stipple_is_sparse_bumps() -> None:

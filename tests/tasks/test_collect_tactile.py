@@ -11,7 +11,13 @@ import pytest
 import trimesh
 
 from neuralfeels_sem.errors import ConfigError, DataError
-from neuralfeels_sem.sim.touch_sources import primitive_objects, sample_touch
+from neuralfeels_sem.objects.material_object import MaterialObject
+from neuralfeels_sem.sim.touch_sources import (
+    FeatureEdges,
+    primitive_objects,
+    sample_feature_touch,
+    sample_touch,
+)
 from neuralfeels_sem.tasks.collect_tactile import run
 from tests.helpers import compose_config, run_cli
 
@@ -74,6 +80,58 @@ def test_edge_presses_give_imprints_cut_off_by_the_sensor_border(tmp_path: Path)
     # Centred presses put 14 % of the contact in the border band (median, sim_v3);
     # edge presses most of it.
     assert np.median(shares) > 0.3
+
+
+def test_feature_presses_are_recorded_per_image_and_press_rims(tmp_path: Path) -> None:
+    root = tmp_path / "feature"
+    run(_cfg(root, "task.feature_press_fraction=1.0", "task.sensors=[index]"))
+    manifest = json.loads((root / "manifest.json").read_text())
+    presses = manifest["presses"]
+    # Every image is listed; spheres and capsules have no rim, so those fall back to centre.
+    assert sorted(presses) == sorted(
+        p.relative_to(root).as_posix() for p in root.glob("index/*/*.png")
+    )
+    assert set(presses.values()) <= {"feature", "centre"}
+    assert manifest["press_counts"]["feature"] >= 1
+    assert sum(manifest["press_counts"].values()) == manifest["total"] == 8
+    assert manifest["feature_press_fraction"] == 1.0
+    # Without feature presses the data set is what it was (same random stream).
+    plain, again = tmp_path / "plain", tmp_path / "again"
+    run(_cfg(plain, "task.sensors=[index]"))
+    run(_cfg(again, "task.sensors=[index]", "task.feature_press_fraction=0.0"))
+    for path in plain.glob("index/*/*.png"):
+        assert np.array_equal(
+            cv2.imread(str(path)), cv2.imread(str(again / path.relative_to(plain)))
+        )
+    assert set(json.loads((plain / "manifest.json").read_text())["presses"].values()) == {"centre"}
+
+
+def _features(mesh: trimesh.Trimesh, labels: np.ndarray | None = None) -> FeatureEdges:
+    labels = np.zeros(len(mesh.faces), int) if labels is None else labels
+    return FeatureEdges.of(MaterialObject("shape", mesh, labels, ("a", "b")))
+
+
+def test_feature_edges_are_the_rims_and_edges_of_a_shape() -> None:
+    box = trimesh.creation.box(extents=(0.05, 0.06, 0.04))
+    edges = _features(box)
+    # The 12 edges of the box (not the diagonals of its faces), pressed at 45 degrees.
+    assert len(edges.length) == 12 and edges.length.sum() == pytest.approx(0.6)
+    assert np.allclose(np.sort(np.abs(edges.normal), axis=1)[:, 1:], np.sqrt(0.5))
+    rng = np.random.default_rng(0)
+    for _ in range(10):
+        touch = sample_feature_touch(edges, 0, rng)
+        # On an edge: two coordinates at the box's half extents.
+        at_face = np.isclose(np.abs(touch.point), [0.025, 0.03, 0.02], atol=1e-9)
+        assert at_face.sum() >= 2
+    assert sample_feature_touch(edges, 1, rng) is None  # no edge of material 1
+    # A smooth sphere has none; a 4 mm rounded rim counts although no single edge is sharp.
+    assert len(_features(trimesh.creation.icosphere(subdivisions=4, radius=0.025)).length) == 0
+    rod = trimesh.creation.capsule(height=0.03, radius=0.004, count=[32, 32])
+    assert len(_features(rod).length) > 0
+    # An edge between two materials is never a feature of either.
+    labels = (box.face_normals[:, 0] > 0.5).astype(int)  # the +x side is of material 1
+    split = _features(box, labels)
+    assert len(split.length) == 8 and set(split.label.tolist()) == {0}
 
 
 def test_refuses_a_non_empty_root_and_unknown_objects(tmp_path: Path) -> None:

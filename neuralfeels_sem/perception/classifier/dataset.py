@@ -9,6 +9,7 @@ images of the wrong size are resized and counted.
 
 from __future__ import annotations
 
+import json
 import logging
 from collections import Counter
 from dataclasses import dataclass, field
@@ -205,3 +206,31 @@ def class_counts(
         s: {c: int(counts.get((s, i), 0)) for i, c in enumerate(class_names)}
         for s in sorted(set(sensors.tolist()))
     }
+
+
+def press_kinds(root: str | Path, paths: list[str]) -> np.ndarray | None:
+    """Each image's kind of press (centre, edge, feature, ...) from a sim data set's manifest.
+
+    `task=collect_tactile` records it in `manifest.json` (`presses`, keyed by the path
+    relative to root); None for data without it (older sim sets, real recordings).
+    Images the manifest does not list are "unknown".
+    """
+    root = resolve_path(root)
+    manifest = root / "manifest.json"
+    if not manifest.is_file():
+        return None
+    try:
+        presses = json.loads(manifest.read_text()).get("presses")
+    except (json.JSONDecodeError, UnicodeDecodeError, AttributeError):
+        log.warning("%s is not a readable JSON manifest; no per-press-kind figures", manifest)
+        return None
+    if not isinstance(presses, dict):
+        return None
+    kinds = []
+    for path in paths:
+        try:
+            key = Path(path).resolve().relative_to(root).as_posix()
+        except ValueError:
+            key = None
+        kinds.append(str(presses.get(key, "unknown")))
+    return np.asarray(kinds)

@@ -95,3 +95,23 @@ def test_report(
         "confusion": core["confusion"],
         "class_names": core["class_names"],
     }
+
+
+def per_press_kind(y_true: np.ndarray, y_pred: np.ndarray, kinds: np.ndarray) -> dict:
+    """{kind: {"accuracy", "count"}}: accuracy per kind of press (centre, edge, feature, ...).
+
+    Centred presses are the paper's protocol (a sample pressed onto the gel); edge and
+    feature presses are the rig's harder imprints.
+    """
+    if not len(y_true) == len(y_pred) == len(kinds):
+        raise ValueError(
+            f"lengths differ: {len(y_true)} labels, {len(y_pred)} predictions, {len(kinds)} kinds"
+        )
+    out = {}
+    for kind in sorted(set(kinds.tolist())):
+        sel = kinds == kind
+        out[kind] = {
+            "accuracy": float((y_true[sel] == y_pred[sel]).mean()),
+            "count": int(sel.sum()),
+        }
+    return out

@@ -31,7 +31,19 @@ def build_model(num_classes: int, weights: str | Path | None = None) -> nn.Modul
     model = EfficientNet.from_name(ARCH, num_classes=num_classes, batch_norm_momentum=BN_DECAY)
     if weights is not None:
         load_backbone(model, weights)
-    return model
+    return speed_up(model)
+
+
+def speed_up(model: nn.Module) -> nn.Module:
+    """Same numbers, faster on CPU: channels-last layout and the plain swish.
+
+    Measured on this project's 2-core CPU, a training step at 112 px, batch 32: 46 img/s
+    as the library builds it, 51 with the plain swish (the library's memory-saving one is
+    a Python autograd function), 72 with channels-last weights and inputs as well (oneDNN's
+    native layout; `to_tensor` already yields channels-last batches from NHWC images).
+    """
+    model.set_swish(memory_efficient=False)
+    return model.to(memory_format=torch.channels_last)
 
 
 def load_backbone(model: nn.Module, weights: str | Path) -> None:

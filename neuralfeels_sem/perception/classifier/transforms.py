@@ -110,6 +110,7 @@ def augment(
         )
         grid = F.affine_grid(theta, list(x.shape), align_corners=False)
         x = F.grid_sample(x, grid, mode="bilinear", padding_mode="reflection", align_corners=False)
+        x = x.contiguous(memory_format=torch.channels_last)  # the model's layout (model.py)
     if contrast > 0:
         mean = x.mean(dim=(1, 2, 3), keepdim=True)
         x = (x - mean) * (1 + uniform(b, 1, 1, 1, scale=contrast)) + mean
