@@ -45,6 +45,7 @@ def test_shipped_checkpoint_keeps_its_accuracy_on_fresh_sim_data(tmp_path: Path)
             f"dataset.root={root}",
             "task.samples_per_class_per_sensor=5",
             f"task.edge_press_fraction={trained_on.get('edge_press_fraction', 0.0)}",
+            f"task.feature_press_fraction={trained_on.get('feature_press_fraction', 0.0)}",
             "seed=777",
             f"hydra.run.dir={tmp_path / 'collect'}",
         ]
