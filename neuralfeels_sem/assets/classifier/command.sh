@@ -23,3 +23,15 @@ python run.py task=collect_tactile dataset.root=data/tactile/fresh_778_edge task
 python -m neuralfeels_sem.sim.rig_touches data/tactile/rig_seed5 --seed 5
 python -m neuralfeels_sem.sim.rig_touches data/tactile/rig_seed0 --seed 0
 python run.py task=eval_classifier dataset.root=data/tactile/rig_seed0
+# stage 5 and stage 6 were tried and not shipped (see README.md)
+# collect_stage7: the current textures (wood pores, finer metal brushing); centred, edge and feature (rim) presses, seed 300
+python run.py task=collect_tactile dataset.root=data/tactile/sim_v6 task.samples_per_class_per_sensor=450 task.edge_press_fraction=0.4 task.feature_press_fraction=0.25 seed=300
+# stage7 (24 cosine epochs from stage 4's classifier.pt; the best validation epoch, 21, is what the task exports)
+OMP_NUM_THREADS=2 python run.py task=train_classifier dataset.root=data/tactile/sim_v6 classifier.input_size=112 classifier.crop_px=112 task.batch_size=32 task.export_fp16=true classifier.device=cpu classifier.weights=neuralfeels_sem/assets/classifier/classifier.pt task.lr=3e-4 task.lr_schedule=cosine task.max_epochs=24 task.patience=24 seed=0 hydra.run.dir=RUN7
+# held-out sets for stage 7: the default sim data set (centred presses), sim_v6's recipe, the rig's own touches
+python run.py task=collect_tactile dataset.root=data/tactile/fresh_centred_779 task.samples_per_class_per_sensor=100 seed=779
+python run.py task=collect_tactile dataset.root=data/tactile/fresh_mixed_778 task.samples_per_class_per_sensor=100 task.edge_press_fraction=0.4 task.feature_press_fraction=0.25 seed=778
+python -m neuralfeels_sem.sim.rig_touches data/tactile/rig_seed0 --seed 0
+python -m neuralfeels_sem.sim.rig_touches data/tactile/rig_seed5 --seed 5
+# report.json: the test split (split.json "test") copied to a folder with its manifest entries, then
+python run.py task=eval_classifier dataset.root=data/tactile/sim_v6_test
