@@ -25,7 +25,7 @@ from __future__ import annotations
 import json
 import logging
 import sys
-from collections import defaultdict
+from collections import Counter, defaultdict
 from pathlib import Path
 
 import cv2
@@ -56,6 +56,13 @@ def _tilted(normal: np.ndarray, max_tilt_rad: float, rng: np.random.Generator) -
     return rotation_matrix(axis, rng.uniform(0.0, max_tilt_rad)) @ normal
 
 
+# Each image's kind of press, by (placed on a feature, pressed with the gel's edge).
+PRESS_KINDS = {
+    (False, False): "centre",
+    (False, True): "edge",
+    (True, False): "feature",
+    (True, True): "feature+edge",
+}
 EDGE_BAND_M = 0.002  # an edge press uses a gel point within this of the gel border
 
 
@@ -200,8 +207,7 @@ def run(cfg: DictConfig) -> dict:
                     )
                 path = root / sensor / class_names[c] / f"{k:05d}.png"
                 cv2.imwrite(str(path), cv2.cvtColor(render.image, cv2.COLOR_RGB2BGR))
-                kind = "+".join(["feature"] * on_feature + ["edge"] * edge) or "centre"
-                presses[path.relative_to(root).as_posix()] = kind
+                presses[path.relative_to(root).as_posix()] = PRESS_KINDS[(on_feature, edge)]
                 counts[sensor][class_names[c]] += 1
                 edge_presses += int(edge)
                 used[sensor][class_names[c]][obj.name] += 1
@@ -236,9 +242,7 @@ def run(cfg: DictConfig) -> dict:
         "edge_tilt_deg": [float(v) for v in task.edge_tilt_deg],
         "edge_presses": edge_presses,
         "feature_press_fraction": feature_fraction,
-        "press_counts": {
-            k: sum(v == k for v in presses.values()) for k in sorted(set(presses.values()))
-        },
+        "press_counts": dict(sorted(Counter(presses.values()).items())),
         "presses": dict(sorted(presses.items())),
         "min_purity": float(task.min_purity),
         "min_contact_px": int(task.min_contact_px),

@@ -95,6 +95,10 @@ def test_feature_presses_are_recorded_per_image_and_press_rims(tmp_path: Path) -
     assert manifest["press_counts"]["feature"] >= 1
     assert sum(manifest["press_counts"].values()) == manifest["total"] == 8
     assert manifest["feature_press_fraction"] == 1.0
+    both = tmp_path / "both"
+    run(_cfg(both, "task.feature_press_fraction=1.0", "task.edge_press_fraction=1.0"))
+    kinds = json.loads((both / "manifest.json").read_text())["press_counts"]
+    assert "feature+edge" in kinds and set(kinds) <= {"feature+edge", "edge"}
     # Without feature presses the data set is what it was (same random stream).
     plain, again = tmp_path / "plain", tmp_path / "again"
     run(_cfg(plain, "task.sensors=[index]"))
