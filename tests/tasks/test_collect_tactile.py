@@ -99,7 +99,7 @@ def test_feature_presses_are_recorded_per_image_and_press_rims(tmp_path: Path) -
     run(_cfg(both, "task.feature_press_fraction=1.0", "task.edge_press_fraction=1.0"))
     kinds = json.loads((both / "manifest.json").read_text())["press_counts"]
     assert "feature+edge" in kinds and set(kinds) <= {"feature+edge", "edge"}
-    # Without feature presses the data set is what it was (same random stream).
+    # The default is off: a run without the key equals one with 0.0, all centred presses.
     plain, again = tmp_path / "plain", tmp_path / "again"
     run(_cfg(plain, "task.sensors=[index]"))
     run(_cfg(again, "task.sensors=[index]", "task.feature_press_fraction=0.0"))
@@ -108,6 +108,11 @@ def test_feature_presses_are_recorded_per_image_and_press_rims(tmp_path: Path) -
             cv2.imread(str(path)), cv2.imread(str(again / path.relative_to(plain)))
         )
     assert set(json.loads((plain / "manifest.json").read_text())["presses"].values()) == {"centre"}
+    # and the option changes what is pressed: a feature image differs from the plain one.
+    featured = [p for p, kind in presses.items() if kind == "feature"]
+    assert any(
+        not np.array_equal(cv2.imread(str(root / p)), cv2.imread(str(plain / p))) for p in featured
+    )
 
 
 def _features(mesh: trimesh.Trimesh, labels: np.ndarray | None = None) -> FeatureEdges:
