@@ -23,6 +23,9 @@ class EvalConfig:
     shape_samples: int = 20000
     # Marching-cubes grid resolution (cells per axis) of the mesh extracted for evaluation.
     mesh_resolution: int = 128
+    # Shape-aware matching (matching_mesh_pct): a ground-truth sample whose nearest point on
+    # the extracted mesh is farther than this counts as wrong (metres).
+    mesh_match_tolerance_m: float = 0.005
     seed: int = 0
 
     def __post_init__(self) -> None:
@@ -46,6 +49,11 @@ class EvalConfig:
             raise ValueError(f"eval.shape_samples={self.shape_samples} must be >= 100")
         if not 16 <= self.mesh_resolution <= 1024:
             raise ValueError(f"eval.mesh_resolution={self.mesh_resolution} must be in 16..1024")
+        if not self.mesh_match_tolerance_m > 0:  # also refuses NaN
+            raise ValueError(
+                f"eval.mesh_match_tolerance_m={self.mesh_match_tolerance_m} must be a distance > 0 "
+                "in metres (e.g. 0.005)"
+            )
         if self.seed < 0:
             raise ValueError(f"eval.seed={self.seed} must be >= 0")
 

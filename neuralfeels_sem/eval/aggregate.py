@@ -3,7 +3,9 @@
 Runs as a Hydra callback in the launching process after every job has finished, so it
 works with every launcher (basic, joblib, submitit, ray). Jobs are grouped by the
 overrides that vary across the sweep, except `seed` (trials of the same setting);
-each numeric metric gets mean and standard deviation per group.
+each numeric metric gets mean and standard deviation per group. The headline is
+mean-class matching beside the majority-material baseline and the margin between them
+(`summary.txt` and the log show it per group; `matching_pct` never stands alone).
 """
 
 from __future__ import annotations
@@ -24,7 +26,18 @@ log = logging.getLogger(__name__)
 
 RESULT_FILES = ("metrics.json", "report.json", "info.json")
 TRIAL_KEYS = ("seed",)
-HEADLINE_METRICS = ("matching_pct", "test_accuracy", "fscore_5mm")
+HEADLINE_METRICS = ("matching_mean_class_pct", "matching_pct", "test_accuracy", "fscore_5mm")
+# Columns of summary.txt for mapping sweeps: (flattened metric, column title).
+HEADLINE_COLUMNS = (
+    ("matching_mean_class_pct", "mean-class %"),
+    ("baseline_majority.matching_mean_class_pct", "majority %"),
+    ("margin_over_majority.matching_mean_class_pct", "margin"),
+    ("matching_pct", "matching %"),
+    ("baseline_majority.matching_pct", "majority %"),
+    ("matching_mesh_pct", "on mesh %"),
+    ("classifier_accuracy.overall", "clf acc"),
+    ("classifier_accuracy.coverage", "coverage"),
+)
 
 
 def flatten_numbers(data: Any, prefix: str = "") -> dict[str, float]:
@@ -118,6 +131,9 @@ def summarize(sweep_dir: Path) -> dict:
     }
     (sweep_dir / "summary.json").write_text(json.dumps(summary, indent=2))
     write_csv(summary, sweep_dir / "summary.csv")
+    table = headline_table(summary)
+    if table:
+        (sweep_dir / "summary.txt").write_text(table + "\n")
     plot_summary(summary, sweep_dir / "summary.png")
     return summary
 
@@ -147,6 +163,33 @@ def write_csv(summary: dict, path: Path) -> None:
         writer.writerows(rows)
 
 
+def headline_table(summary: dict) -> str:
+    """Per group: mean-class matching, the majority baseline, the margin and the rest (mean ± std).
+
+    Empty when the sweep is not a mapping sweep. Classifier figures are 0-1 shares, shown in %.
+    """
+    groups = summary["groups"]
+    if not any("matching_mean_class_pct" in g["metrics"] for g in groups):
+        return ""
+    names = [", ".join(f"{k}={v}" for k, v in g["group"].items()) or "all" for g in groups]
+    width = max(len("setting"), *(len(n) for n in names))
+    header = f"{'setting':<{width}}  {'n':>2}  " + "  ".join(
+        f"{t:>13}" for _, t in HEADLINE_COLUMNS
+    )
+    lines = [header]
+    for name, group in zip(names, groups):
+        cells = []
+        for key, _ in HEADLINE_COLUMNS:
+            stat = group["metrics"].get(key)
+            scale = 100.0 if key.startswith("classifier_accuracy.") else 1.0
+            cells.append(
+                "n/a" if stat is None else f"{scale * stat['mean']:.1f} ± {scale * stat['std']:.1f}"
+            )
+        n = max((s["n"] for s in group["metrics"].values()), default=0)
+        lines.append(f"{name:<{width}}  {n:>2}  " + "  ".join(f"{c:>13}" for c in cells))
+    return "\n".join(lines)
+
+
 def plot_summary(summary: dict, path: Path) -> None:
     """Bar chart (mean +- std) of the headline metric per group."""
     groups = summary["groups"]
@@ -169,6 +212,19 @@ def plot_summary(summary: dict, path: Path) -> None:
     stds = [g["metrics"].get(metric, {}).get("std", 0.0) for g in groups]
     fig, ax = plt.subplots(figsize=(max(4, 1.2 * len(groups) + 2), 4))
     ax.bar(range(len(groups)), means, yerr=stds, capsize=4, color="#4C72B0")
+    floor_key = f"baseline_majority.{metric}"
+    floors = [g["metrics"].get(floor_key, {}).get("mean") for g in groups]
+    if any(f is not None for f in floors):
+        ax.scatter(
+            range(len(groups)),
+            [float("nan") if f is None else f for f in floors],
+            marker="_",
+            s=900,
+            color="black",
+            zorder=3,
+            label="majority-material map",
+        )
+        ax.legend(fontsize=8, loc="lower right")
     ax.set_xticks(range(len(groups)), labels, rotation=30, ha="right", fontsize=8)
     ax.set_ylabel(metric)
     ax.set_title(f"{metric} per group (mean ± std)")
@@ -188,6 +244,9 @@ class SweepAggregator(Callback):
         log.info(
             "sweep summary: %s (%d groups)", sweep_dir / "summary.json", len(summary["groups"])
         )
+        table = headline_table(summary)
+        if table:
+            log.info("mean ± std per setting:\n%s", table)
         if summary["failed"]:
             log.error(
                 "%d of %d jobs failed: %s",

@@ -3,8 +3,12 @@
 Each update is one classified touch: the predicted class (or NO_LABEL = -1 when the
 classifier abstained: no contact seen or confidence below threshold) and the ground-truth
 class under the contact (None when the simulator reports no contact or no material).
-Accuracy counts only touches with both a ground truth and a prediction; abstentions on
-real contacts are reported separately, never as errors.
+Three figures per finger, per material and per finger x material, over the touches that
+have a ground truth:
+- `accuracy`: correct / judged (touches that got a label): how far a label can be trusted;
+- `coverage`: judged / touches: how often a touch gave the map a label at all;
+- `accuracy_all_touches`: correct / touches (an abstention counts as not correctly
+  labelled): what the map actually received, so a finger that rarely commits shows it.
 """
 
 from __future__ import annotations
@@ -67,18 +71,23 @@ class ClassifierAccuracy:
         wrong = sum(t[1] for t in tallies)
         abstained = sum(t[2] for t in tallies)
         judged = correct + wrong
+        touches = judged + abstained
         return {
             "accuracy": correct / judged if judged else None,
+            "coverage": judged / touches if touches else None,
+            "accuracy_all_touches": correct / touches if touches else None,
             "correct": correct,
             "judged": judged,
             "abstentions": abstained,
+            "touches": touches,
         }
 
     def summary(self, class_names: Sequence[str]) -> dict:
         """Accuracies in 0-1 (None where nothing was judged) with their counts.
 
-        Keys: overall, per_finger {finger: acc}, per_material {name: acc},
-        per_finger_material {finger: {name: acc}}, counts {finger: {name: {...}}},
+        Keys: overall, coverage, accuracy_all_touches; per_finger {finger: acc},
+        per_material {name: acc}, per_finger_material {finger: {name: acc}}; by_finger and
+        by_material {name: every figure and count of `_stats`}; counts {finger: {name: {...}}};
         abstentions (total), abstention_rate (abstained / touches with ground truth), no_ground_truth.
         """
         for _, gt in self._tally:
@@ -89,9 +98,13 @@ class ClassifierAccuracy:
         overall = self._stats(list(self._tally.values()))
         out: dict = {
             "overall": overall["accuracy"],
+            "coverage": overall["coverage"],
+            "accuracy_all_touches": overall["accuracy_all_touches"],
             "per_finger": {},
             "per_material": {},
             "per_finger_material": {},
+            "by_finger": {},
+            "by_material": {},
             "counts": {},
             "abstentions": overall["abstentions"],
             "abstention_rate": (
@@ -103,9 +116,9 @@ class ClassifierAccuracy:
             "no_ground_truth": dict(self.no_ground_truth),
         }
         for finger in fingers:
-            out["per_finger"][finger] = self._stats(
-                [t for (f, _), t in self._tally.items() if f == finger]
-            )["accuracy"]
+            stats = self._stats([t for (f, _), t in self._tally.items() if f == finger])
+            out["by_finger"][finger] = stats
+            out["per_finger"][finger] = stats["accuracy"]
             out["per_finger_material"][finger] = {}
             out["counts"][finger] = {}
             for gt in materials:
@@ -114,7 +127,7 @@ class ClassifierAccuracy:
                     out["per_finger_material"][finger][class_names[gt]] = stats["accuracy"]
                     out["counts"][finger][class_names[gt]] = stats
         for gt in materials:
-            out["per_material"][class_names[gt]] = self._stats(
-                [t for (_, g), t in self._tally.items() if g == gt]
-            )["accuracy"]
+            stats = self._stats([t for (_, g), t in self._tally.items() if g == gt])
+            out["by_material"][class_names[gt]] = stats
+            out["per_material"][class_names[gt]] = stats["accuracy"]
         return out

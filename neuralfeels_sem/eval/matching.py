@@ -1,8 +1,15 @@
-"""Matching percentage in 3D (DESIGN.md "Matching percentage").
+"""Matching percentage in 3D (docs/design.md "Matching percentage").
 
-Score = share of ground-truth surface samples (area-uniform over the regions of interest,
-i.e. faces whose label is not IGNORE, with a fixed seed) whose predicted class equals the
-ground-truth class. The samples are drawn once, so scores over a run are comparable.
+Ground-truth surface samples are drawn once (area-uniform over the regions of interest,
+i.e. faces whose label is not IGNORE, with a fixed seed), so scores over a run compare.
+On them:
+- `matching_pct`: share of samples whose predicted class equals the ground truth (the
+  paper's figure; a constant map of the majority material scores that material's share);
+- `matching_mean_class_pct`: mean over the classes present of each class's recall, so
+  every material counts the same whatever its area (a constant map scores 100 / classes);
+- `matching_miou_pct`: mean intersection-over-union over the classes present.
+A prediction of NO_PREDICTION (-1) is wrong for every class: the shape-aware form uses it
+for samples with no reconstructed surface near them.
 """
 
 from __future__ import annotations
@@ -15,6 +22,7 @@ from neuralfeels_sem.errors import NoDataError
 from neuralfeels_sem.objects.material_object import IGNORE, MaterialObject
 
 Predictor = Callable[[np.ndarray], np.ndarray]
+NO_PREDICTION = -1  # a sample the map gives no class (no surface near it): wrong for every class
 
 
 def sample_faces_uniform(
@@ -48,6 +56,28 @@ def predict_labels(predict: Predictor, points: np.ndarray) -> np.ndarray:
     return pred.astype(np.int64)
 
 
+def label_scores(labels: np.ndarray, pred: np.ndarray, class_names: tuple[str, ...]) -> dict:
+    """Matching, per-class recall, mean-class recall and mean IoU (0-100) of `pred` vs `labels`.
+
+    Only classes present in `labels` count towards the means; predicting an absent class
+    lowers the recall and IoU of the class it replaced.
+    """
+    if pred.shape != labels.shape:
+        raise ValueError(f"predictions {pred.shape} do not match samples {labels.shape}")
+    recall, iou = {}, {}
+    for index in np.unique(labels):
+        truth, said = labels == index, pred == index
+        name = class_names[int(index)]
+        recall[name] = float(100.0 * np.mean(said[truth]))
+        iou[name] = float(100.0 * np.sum(truth & said) / np.sum(truth | said))
+    return {
+        "matching_pct": float(100.0 * np.mean(pred == labels)),
+        "matching_per_class": recall,
+        "matching_mean_class_pct": float(np.mean(list(recall.values()))),
+        "matching_miou_pct": float(np.mean(list(iou.values()))),
+    }
+
+
 class MatchingEvaluator:
     """Scores a material predictor against one object's ground truth on fixed surface samples."""
 
@@ -65,33 +95,34 @@ class MatchingEvaluator:
         faces = np.asarray(obj.mesh.faces)
         self.points, self.faces = sample_faces_uniform(vertices, faces, roi, num_samples, seed)
         self.labels = obj.face_labels[self.faces]
+        present = np.unique(self.labels)
+        self.notes: list[str] = []
+        if len(present) == 1:
+            self.notes.append(
+                f"the regions of interest hold one material ({self.class_names[present[0]]}): "
+                "mean-class matching is that material's recall, and a constant map scores 100 %"
+            )
+
+    @property
+    def majority_class(self) -> int:
+        """The ground truth's majority material over the samples (by area); ties go to the lower index."""
+        return int(np.bincount(self.labels).argmax())
 
     def predictions(self, predict: Predictor) -> np.ndarray:
         return predict_labels(predict, self.points)
 
     def score(self, predict: Predictor) -> float:
         """Matching percentage, 0-100."""
-        return self.score_labels(self.predictions(predict))
-
-    def score_labels(self, pred: np.ndarray) -> float:
-        """Matching percentage of predictions already made at `self.points`."""
-        if pred.shape != self.labels.shape:
-            raise ValueError(f"predictions {pred.shape} do not match samples {self.labels.shape}")
-        return float(100.0 * np.mean(pred == self.labels))
+        return self.evaluate(predict)["matching_pct"]
 
     def per_class(self, predict: Predictor) -> dict[str, float]:
         """Recall (0-100) per material present in the regions of interest."""
-        return self.per_class_labels(self.predictions(predict))
-
-    def per_class_labels(self, pred: np.ndarray) -> dict[str, float]:
-        out = {}
-        for index, name in enumerate(self.class_names):
-            mask = self.labels == index
-            if mask.any():
-                out[name] = float(100.0 * np.mean(pred[mask] == index))
-        return out
+        return self.evaluate(predict)["matching_per_class"]
 
     def evaluate(self, predict: Predictor) -> dict:
-        """Both numbers from one call of the predictor: {'matching_pct', 'per_class'}."""
-        pred = self.predictions(predict)
-        return {"matching_pct": self.score_labels(pred), "per_class": self.per_class_labels(pred)}
+        """Every matching figure from one call of the predictor (keys as `label_scores`)."""
+        return self.evaluate_labels(self.predictions(predict))
+
+    def evaluate_labels(self, pred: np.ndarray) -> dict:
+        """Every matching figure of predictions already made at `self.points` (NO_PREDICTION allowed)."""
+        return label_scores(self.labels, np.asarray(pred, dtype=np.int64), self.class_names)

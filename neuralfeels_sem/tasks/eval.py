@@ -74,27 +74,16 @@ def run(cfg: DictConfig) -> dict:
     # The current eval settings (so a run can be re-scored more finely), the run's own object.
     scorer = build_scorer(OmegaConf.merge(run_cfg, {"eval": cfg.eval}), obj)
     scorer.load_state(resumed["extra"].get("scorer", {}))
-    final, mesh = scorer.field_metrics(mapper.field, bound)
-    if mesh is not None:
-        mesh.export(out / "material_mesh.ply")
     previous = {}
     if (run_dir / "metrics.json").is_file():
         previous = json.loads((run_dir / "metrics.json").read_text())
+    # The untrained field's figures cannot be recomputed from a checkpoint: keep the run's.
+    scores, mesh = scorer.final_metrics(mapper.field, bound, previous.get("baseline") or {})
+    if mesh is not None:
+        mesh.export(out / "material_mesh.ply")
     metrics = {
         **previous,
-        **{
-            k: final.get(k)
-            for k in (
-                "matching_pct",
-                "matching_pct_image",
-                "matching_per_class",
-                "fscore_5mm",
-                "chamfer_mm",
-                "fscore_curve",
-            )
-        },
-        "matching_curve": scorer.curve,
-        "classifier_accuracy": scorer.classifier_accuracy(),
+        **scores,
         "trained_on": mapper.trained_on,
         "evaluated_checkpoint_frame": resumed["frame_index"],
     }

@@ -49,6 +49,7 @@ def build_scorer(cfg: DictConfig, obj) -> RunScorer:
         shape_samples=e.shape_samples,
         mesh_resolution=e.mesh_resolution,
         seed=e.seed,
+        mesh_match_tolerance_m=e.mesh_match_tolerance_m,
     )
 
 
@@ -92,8 +93,13 @@ def map_object(cfg: DictConfig, obj, sensor, out: Path) -> dict:
     snapshots_dir.mkdir(exist_ok=True)
 
     baseline, _ = scorer.field_metrics(mapper.field, bound)
+    majority = scorer.majority_baseline()
     log.info(
-        "untrained field (baseline): matching %.1f%%", baseline.get("matching_pct", float("nan"))
+        "floors: majority-material map %.1f%% mean-class / %.1f%% matching; untrained field %.1f%% / %.1f%%",
+        majority.get("matching_mean_class_pct", float("nan")),
+        majority.get("matching_pct", float("nan")),
+        baseline.get("matching_mean_class_pct", float("nan")),
+        baseline.get("matching_pct", float("nan")),
     )
 
     start_index = -1
@@ -134,14 +140,14 @@ def map_object(cfg: DictConfig, obj, sensor, out: Path) -> dict:
         last_time = frame.time_s
         is_last = total is not None and frame.index == total - 1
         if frame.index % every_k == 0 or is_last:
-            pct = scorer.score(
+            scores = scorer.score(
                 mapper.field, frame.index, frame.time_s, pose_source.field_T_gt_object()
             )
             elapsed = time.perf_counter() - wall_start
             bar.set_postfix(
                 t=f"{frame.time_s:.1f}s",
                 fps=f"{processed / max(elapsed, 1e-9):.2f}",
-                match="n/a" if pct is None else f"{pct:.1f}%",
+                mean_class="n/a" if scores is None else f"{scores['matching_mean_class_pct']:.1f}%",
             )
         if frame.index % snapshot_every == 0 or is_last:
             take_snapshot(
@@ -182,32 +188,22 @@ def map_object(cfg: DictConfig, obj, sensor, out: Path) -> dict:
     if not scorer.curve or scorer.curve[-1][0] != last_index:
         scorer.score(mapper.field, last_index, last_time or 0.0, pose_source.field_T_gt_object())
 
-    final, mesh = scorer.field_metrics(mapper.field, bound, pose_source.field_T_gt_object())
+    scores, mesh = scorer.final_metrics(
+        mapper.field, bound, baseline, pose_source.field_T_gt_object()
+    )
     if mesh is not None:
         mesh.export(out / "material_mesh.ply")
     sensor_time = (last_time - first_time + frame_period) if first_time is not None else 0.0
     metrics = {
-        "matching_pct": final.get("matching_pct"),
-        "matching_pct_image": final.get("matching_pct_image"),
-        "matching_per_class": final.get("matching_per_class"),
-        "matching_curve": scorer.curve,
-        "fscore_5mm": final.get("fscore_5mm"),
-        "chamfer_mm": final.get("chamfer_mm"),
-        "fscore_curve": final.get("fscore_curve"),
-        "classifier_accuracy": scorer.classifier_accuracy(),
+        **scores,
         "frames": processed,
         "frames_total": last_index + 1,
         "wall_s": wall_s,
         "sensor_time_s": sensor_time,
         "realtime_factor": sensor_time / wall_s if wall_s > 0 else None,
-        "baseline": {
-            k: baseline.get(k)
-            for k in ("matching_pct", "matching_pct_image", "fscore_5mm", "chamfer_mm")
-        },
         "trained_on": trained_on,
         "pose_source": pose_source.name,
         **pose_source.metrics(),
-        "notes": scorer.notes + ([final["shape_note"]] if "shape_note" in final else []),
         "config": {
             "object": cfg.object.name,
             "sensor": cfg.sensor.name,

@@ -33,11 +33,15 @@ def write_pictures(
 ) -> None:
     names = scorer.class_names
     if metrics["matching_curve"]:
+        majority = metrics.get("baseline_majority") or {}
         plot_matching_curve(
             metrics["matching_curve"],
             out / "matching_curve.png",
-            baseline=metrics["baseline"].get("matching_pct"),
-            title=f"{metrics['config']['object']}: final {metrics['matching_pct']:.1f}%",
+            mean_class_curve=metrics.get("matching_mean_class_curve"),
+            majority=majority,
+            title=f"{metrics['config']['object']}: final mean-class "
+            f"{_fmt(metrics.get('matching_mean_class_pct'), '.1f', '%')} "
+            f"(majority map {_fmt(majority.get('matching_mean_class_pct'), '.1f', '%')})",
             dpi=dpi,
         )
     snapshots = load_snapshots(snapshots_dir)
@@ -56,36 +60,61 @@ def _fmt(value, spec: str = ".1f", suffix: str = "") -> str:
     return "n/a" if value is None else f"{value:{spec}}{suffix}"
 
 
-def print_summary(metrics: dict, out: Path) -> None:
+def _pct(value) -> str:
+    return _fmt(value, ".1f", "%")
+
+
+def _share(value) -> str:
+    """A 0-1 share as a percentage."""
+    return _fmt(None if value is None else 100.0 * value, ".1f", "%")
+
+
+def summary_rows(metrics: dict) -> list[tuple[str, str, str, str]]:
+    """(metric, run, majority-material map, untrained field) rows of the terminal summary."""
     acc = metrics["classifier_accuracy"]
-    base = metrics["baseline"]
-    rows = [
+    majority = metrics.get("baseline_majority") or {}
+    base = metrics.get("baseline") or {}
+
+    def matching(name: str, key: str) -> tuple[str, str, str, str]:
+        return name, _pct(metrics.get(key)), _pct(majority.get(key)), _pct(base.get(key))
+
+    return [
+        matching("mean-class matching", "matching_mean_class_pct"),
+        matching("matching (3D)", "matching_pct"),
+        matching("mean IoU", "matching_miou_pct"),
+        matching("matching on mesh", "matching_mesh_pct"),
+        matching("matching (image)", "matching_pct_image"),
         (
-            "matching (3D)",
-            _fmt(metrics["matching_pct"], ".1f", "%"),
-            _fmt(base.get("matching_pct"), ".1f", "%"),
+            "F-score @5mm",
+            _fmt(metrics.get("fscore_5mm"), ".3f"),
+            "",
+            _fmt(base.get("fscore_5mm"), ".3f"),
         ),
-        (
-            "matching (image)",
-            _fmt(metrics["matching_pct_image"], ".1f", "%"),
-            _fmt(base.get("matching_pct_image"), ".1f", "%"),
-        ),
-        ("F-score @5mm", _fmt(metrics["fscore_5mm"], ".3f"), _fmt(base.get("fscore_5mm"), ".3f")),
         (
             "Chamfer",
-            _fmt(metrics["chamfer_mm"], ".2f", " mm"),
+            _fmt(metrics.get("chamfer_mm"), ".2f", " mm"),
+            "",
             _fmt(base.get("chamfer_mm"), ".2f", " mm"),
         ),
-        (
-            "classifier accuracy",
-            _fmt(None if acc["overall"] is None else 100 * acc["overall"], ".1f", "%"),
-            "",
-        ),
-        ("frames / wall time", f"{metrics['frames']} / {metrics['wall_s']:.0f} s", ""),
-        ("realtime factor", _fmt(metrics["realtime_factor"], ".2f"), ""),
+        ("classifier accuracy (judged)", _share(acc.get("overall")), "", ""),
+        ("classifier coverage", _share(acc.get("coverage")), "", ""),
+        ("classifier acc. (all touches)", _share(acc.get("accuracy_all_touches")), "", ""),
+        ("frames / wall time", f"{metrics['frames']} / {metrics['wall_s']:.0f} s", "", ""),
+        ("realtime factor", _fmt(metrics.get("realtime_factor"), ".2f"), "", ""),
     ]
+
+
+def print_summary(metrics: dict, out: Path) -> None:
+    rows = summary_rows(metrics)
     width = max(len(r[0]) for r in rows)
-    lines = [f"{'metric':<{width}}  {'run':>14}  {'untrained':>10}"]
-    lines += [f"{name:<{width}}  {value:>14}  {floor:>10}" for name, value, floor in rows]
+    lines = [f"{'metric':<{width}}  {'run':>14}  {'majority':>9}  {'untrained':>10}"]
+    lines += [f"{r[0]:<{width}}  {r[1]:>14}  {r[2]:>9}  {r[3]:>10}" for r in rows]
+    material = (metrics.get("baseline_majority") or {}).get("material")
+    if material:
+        lines.append(
+            f"majority = the whole object painted {material}, the ground truth's largest material"
+        )
+    for note in metrics.get("notes") or []:
+        lines.append(f"note: {note}")
     print("\n".join(lines))
     print(f"run directory: {out}")

@@ -38,10 +38,27 @@ def plot_matching_curve(
     baseline: float | None = None,
     title: str = "",
     dpi: int = 120,
+    mean_class_curve: Sequence[Sequence[float]] | None = None,
+    majority: Mapping[str, float] | None = None,
 ) -> Path:
-    """Matching % over sensor time (figure 5A for one run); `baseline` = the untrained field's score."""
+    """One run's matching over sensor time (figure 5A), read against the majority-material map.
+
+    `curve` is plain matching, `mean_class_curve` the mean-class form (drawn first when
+    given); `majority` the constant majority map's figures (dashed, same colours);
+    `baseline` the untrained field's plain matching (grey, dotted).
+    """
+    curves = {"matching": curve}
+    if mean_class_curve:
+        curves = {"mean-class matching": mean_class_curve, "matching": curve}
+    floors = {}
+    if majority:
+        for name, key in (("mean-class", "matching_mean_class_pct"), ("matching", "matching_pct")):
+            if name == "mean-class" and not mean_class_curve:
+                continue
+            if majority.get(key) is not None:
+                floors[f"majority map, {name}"] = float(majority[key])
     return plot_matching_curves(
-        {"run": curve}, path, baseline=baseline, title=title, dpi=dpi, legend=False
+        curves, path, baseline=baseline, title=title, dpi=dpi, legend=True, floors=floors
     )
 
 
@@ -52,10 +69,16 @@ def plot_matching_curves(
     title: str = "",
     dpi: int = 120,
     legend: bool = True,
+    floors: Mapping[str, float] | None = None,
 ) -> Path:
-    """Several runs' matching curves on one axis (figure 5A)."""
+    """Several matching curves on one axis (figure 5A); `floors` are dashed horizontal
+    lines in the colour of the curve at the same position (e.g. the majority map's figures)."""
     fig = Figure(figsize=(6.0, 3.8))
     ax = fig.add_subplot()
+    for k, (name, value) in enumerate((floors or {}).items()):
+        ax.axhline(
+            value, color=f"C{k}", linestyle="--", linewidth=1, label=f"{name} ({value:.1f}%)"
+        )
     for name, curve in curves.items():
         array = _check_curve(curve, f"matching curve {name!r}")
         if len(array):

@@ -37,10 +37,28 @@ def test_hand_made_sequence() -> None:
     }
     assert s["counts"]["index"]["plastic"] == {
         "accuracy": pytest.approx(2 / 3),
+        "coverage": pytest.approx(3 / 4),
+        "accuracy_all_touches": pytest.approx(2 / 4),
         "correct": 2,
         "judged": 3,
         "abstentions": 1,
+        "touches": 4,
     }
+    # Abstentions count as not correctly labelled in accuracy_all_touches, never in accuracy.
+    assert s["coverage"] == pytest.approx(6 / 8)
+    assert s["accuracy_all_touches"] == pytest.approx(4 / 8)
+    assert s["by_finger"]["thumb"]["coverage"] == pytest.approx(3 / 4)
+    assert s["by_finger"]["thumb"]["accuracy_all_touches"] == pytest.approx(2 / 4)
+    assert s["by_material"]["wood"] == {
+        "accuracy": 0.5,
+        "coverage": 1.0,
+        "accuracy_all_touches": 0.5,
+        "correct": 1,
+        "judged": 2,
+        "abstentions": 0,
+        "touches": 2,
+    }
+    assert s["by_material"]["fabric"]["coverage"] == 0.5
     assert s["counts"]["thumb"]["fabric"]["abstentions"] == 1
     assert s["abstentions"] == 2
     assert s["judged"] == 6
@@ -55,6 +73,9 @@ def test_a_material_only_ever_abstained_has_no_accuracy() -> None:
     assert s["overall"] is None
     assert s["per_finger_material"] == {"ring": {"metal": None}}
     assert s["abstentions"] == 1 and s["abstention_rate"] == 1.0
+    # The weak-finger effect shows: no coverage and nothing correct, not a missing cell.
+    assert s["coverage"] == 0.0 and s["accuracy_all_touches"] == 0.0
+    assert s["by_finger"]["ring"]["coverage"] == 0.0
 
 
 def test_empty_summary() -> None:

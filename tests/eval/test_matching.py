@@ -51,7 +51,8 @@ def test_swapping_one_hemisphere_scores_half(sphere: MaterialObject) -> None:
     for value in per_class.values():
         assert value == pytest.approx(50.0, abs=2.5)
     result = ev.evaluate(predict_swap_x_positive)
-    assert result == {"matching_pct": score, "per_class": per_class}
+    assert result["matching_pct"] == score and result["matching_per_class"] == per_class
+    assert result["matching_mean_class_pct"] == pytest.approx(np.mean(list(per_class.values())))
 
 
 def test_ignore_faces_never_count(sphere: MaterialObject) -> None:

@@ -45,6 +45,9 @@ def tiny_run(tmp_path_factory) -> Path:
     result = run_cli([*TINY, f"hydra.run.dir={run_dir}"], timeout=900)
     assert result.returncode == 0, result.stderr[-4000:]
     assert f"run directory: {run_dir}" in result.stdout
+    header = next(line for line in result.stdout.splitlines() if line.startswith("metric"))
+    assert header.split() == ["metric", "run", "majority", "untrained"]
+    assert "mean-class matching" in result.stdout
     return run_dir
 
 
@@ -64,6 +67,12 @@ def test_map_writes_the_run_output_contract(tiny_run: Path) -> None:
         "config",
         "baseline",
         "trained_on",
+        "matching_mean_class_pct",
+        "matching_miou_pct",
+        "matching_mesh_pct",
+        "matching_mean_class_curve",
+        "baseline_majority",
+        "margin_over_majority",
     ):
         assert key in metrics, key
     assert metrics["frames"] == 8
@@ -79,6 +88,32 @@ def test_map_writes_the_run_output_contract(tiny_run: Path) -> None:
     assert metrics["matching_pct"] > metrics["baseline"]["matching_pct"] + 20
     assert metrics["fscore_5mm"] > metrics["baseline"]["fscore_5mm"]
     assert metrics["classifier_accuracy"]["overall"] == pytest.approx(1.0)  # the oracle
+
+
+def test_map_reads_every_figure_against_the_majority_map(tiny_run: Path) -> None:
+    metrics = json.loads((tiny_run / "metrics.json").read_text())
+    majority = metrics["baseline_majority"]
+    classes = len(metrics["matching_per_class"])
+    assert majority["material"] == "fabric" and classes == 2  # the plushie: fabric, plastic
+    # A constant map is right on one class and wrong on the others.
+    assert majority["matching_mean_class_pct"] == pytest.approx(100.0 / classes)
+    assert majority["matching_pct"] > 90.0  # and yet scores the fabric share
+    assert metrics["matching_mean_class_pct"] == pytest.approx(
+        sum(metrics["matching_per_class"].values()) / classes
+    )
+    assert metrics["margin_over_majority"]["matching_mean_class_pct"] == pytest.approx(
+        metrics["matching_mean_class_pct"] - majority["matching_mean_class_pct"]
+    )
+    frames = [row[:2] for row in metrics["matching_curve"]]
+    assert [row[:2] for row in metrics["matching_mean_class_curve"]] == frames
+    assert metrics["matching_mean_class_curve"][-1][2] == pytest.approx(
+        metrics["matching_mean_class_pct"]
+    )
+    assert 0.0 <= metrics["matching_mesh_pct"] <= 100.0
+    assert 0.0 <= metrics["matching_miou_pct"] <= 100.0
+    acc = metrics["classifier_accuracy"]
+    assert acc["coverage"] == pytest.approx(acc["judged"] / (acc["judged"] + acc["abstentions"]))
+    assert acc["accuracy_all_touches"] == pytest.approx(acc["overall"] * acc["coverage"])
 
 
 def test_task_eval_rescores_a_finished_run(tiny_run: Path) -> None:
@@ -97,6 +132,9 @@ def test_task_eval_rescores_a_finished_run(tiny_run: Path) -> None:
     original = json.loads((tiny_run / "metrics.json").read_text())
     again = json.loads((tiny_run / "eval" / "metrics.json").read_text())
     assert again["matching_pct"] == pytest.approx(original["matching_pct"])
+    for key in ("matching_mean_class_pct", "matching_miou_pct", "matching_mesh_pct"):
+        assert again[key] == pytest.approx(original[key]), key
+    assert again["baseline_majority"] == original["baseline_majority"]
     assert again["fscore_5mm"] == pytest.approx(original["fscore_5mm"], abs=1e-6)
     assert (tiny_run / "eval" / "material_maps.png").is_file()
 
@@ -144,6 +182,9 @@ def test_resume_continues_from_the_checkpoint(tiny_run: Path, tmp_path: Path) ->
     assert metrics["frames"] == 4
     assert metrics["trained_on"]["frames"] == 12
     assert metrics["matching_curve"][0][0] == 0 and metrics["matching_curve"][-1][0] == 11
+    assert [r[0] for r in metrics["matching_mean_class_curve"]] == [
+        r[0] for r in metrics["matching_curve"]
+    ]
 
 
 def test_resume_with_another_model_variant_is_refused(tiny_run: Path, tmp_path: Path) -> None:

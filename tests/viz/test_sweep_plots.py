@@ -187,8 +187,13 @@ def test_ablation_without_object_axis_names_the_shared_object(tmp_path: Path) ->
 def test_heatmap_pools_touches_rather_than_averaging_runs() -> None:
     from neuralfeels_sem.viz.sweep_plots import pooled_finger_material
 
-    def run(correct: int, judged: int) -> dict:
-        cell = {"accuracy": correct / judged, "correct": correct, "judged": judged}
+    def run(correct: int, judged: int, abstentions: int = 0) -> dict:
+        cell = {
+            "accuracy": correct / judged,
+            "correct": correct,
+            "judged": judged,
+            "abstentions": abstentions,
+        }
         return {
             "classifier_accuracy": {
                 "per_finger_material": {"ring": {"metal": correct / judged}},
@@ -196,9 +201,14 @@ def test_heatmap_pools_touches_rather_than_averaging_runs() -> None:
             }
         }
 
-    runs = [run(0, 1), run(99, 99)]  # one wrong touch in one run, 99 right in another
-    accuracy, judged = pooled_finger_material(runs, ["ring", "thumb"], ["metal"])
+    # one wrong touch in one run, 99 right and 100 abstained in another
+    runs = [run(0, 1), run(99, 99, abstentions=100)]
+    pooled = pooled_finger_material(runs, ["ring", "thumb"], ["metal"])
+    accuracy, judged = pooled["accuracy"], pooled["judged"]
     assert accuracy[0, 0] == pytest.approx(99.0) and judged[0, 0] == 100
+    assert pooled["touches"][0, 0] == 200
+    assert pooled["coverage"][0, 0] == pytest.approx(50.0)
+    assert pooled["accuracy_all_touches"][0, 0] == pytest.approx(49.5)
     assert np.isnan(accuracy[1, 0]) and judged[1, 0] == 0
     _, _, values = finger_material_table(runs)
     assert np.nanmean(values[0, 0]) == pytest.approx(50.0)  # what a mean of runs shows
