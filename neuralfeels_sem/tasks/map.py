@@ -63,6 +63,21 @@ def build_mapper(cfg: DictConfig, bound: float, device):
     return mapper
 
 
+def oracles_used(cfg: DictConfig) -> list[str]:
+    """The simulator's ground truth a run's perception or pose used (a real rig has none)."""
+    if cfg.sensor.name != "sim":
+        return []
+    mapper = cfg.mapping.mapper
+    used = {
+        "object_pose": cfg.mapping.pose == "gt",
+        "camera_mask": bool(mapper.get("use_camera_mask", False)),
+        "tactile_contact_depth": mapper.get("tactile_depth", {}).get("source") == "gt",
+        "noise_free_depth": float(cfg.sensor.get("rgbd", {}).get("depth_noise_std", 0.0)) == 0.0,
+        "material_labels": str(cfg.classifier.get("_target_", "")).endswith("OracleClassifier"),
+    }
+    return [name for name, on in used.items() if on]
+
+
 def model_config(cfg: DictConfig) -> dict:
     return OmegaConf.to_container(cfg.model, resolve=True)
 
@@ -203,6 +218,7 @@ def map_object(cfg: DictConfig, obj, sensor, out: Path) -> dict:
         "realtime_factor": sensor_time / wall_s if wall_s > 0 else None,
         "trained_on": trained_on,
         "pose_source": pose_source.name,
+        "oracles": oracles_used(cfg),
         **pose_source.metrics(),
         "config": {
             "object": cfg.object.name,

@@ -114,6 +114,8 @@ def print_summary(metrics: dict, out: Path) -> None:
         lines.append(
             f"majority = the whole object painted {material}, the ground truth's largest material"
         )
+    if metrics.get("oracles"):
+        lines.append(f"simulator oracles used: {', '.join(metrics['oracles'])}")
     for note in metrics.get("notes") or []:
         lines.append(f"note: {note}")
     print("\n".join(lines))

@@ -109,6 +109,14 @@ def test_map_reads_every_figure_against_the_majority_map(tiny_run: Path) -> None
     assert metrics["matching_mean_class_curve"][-1][2] == pytest.approx(
         metrics["matching_mean_class_pct"]
     )
+    # The toy run takes the simulator's ground truth for everything a real rig must perceive.
+    assert metrics["oracles"] == [
+        "object_pose",
+        "camera_mask",
+        "tactile_contact_depth",
+        "noise_free_depth",
+        "material_labels",
+    ]
     assert 0.0 <= metrics["matching_mesh_pct"] <= 100.0
     assert 0.0 <= metrics["matching_miou_pct"] <= 100.0
     acc = metrics["classifier_accuracy"]
