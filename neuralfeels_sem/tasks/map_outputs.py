@@ -46,7 +46,9 @@ def write_pictures(
         )
     snapshots = load_snapshots(snapshots_dir)
     if snapshots:
-        plot_material_maps(snapshots[-1][1], names, out / "material_maps.png", dpi=dpi)
+        plot_material_maps(
+            snapshots[-1][1], names, out / "material_maps.png", dpi=dpi, title=maps_title(metrics)
+        )
         # At most 6 columns: evenly spaced over the run, always including the last one.
         pick = np.unique(
             np.linspace(0, len(snapshots) - 1, min(6, len(snapshots))).round().astype(int)
@@ -58,6 +60,16 @@ def write_pictures(
 
 def _fmt(value, spec: str = ".1f", suffix: str = "") -> str:
     return "n/a" if value is None else f"{value:{spec}}{suffix}"
+
+
+def maps_title(metrics: dict) -> str:
+    """The final figures of material_maps.png, each beside the majority-material map's."""
+    majority = metrics.get("baseline_majority") or {}
+    return (
+        f"{metrics['config']['object']}: mean-class {_fmt(metrics.get('matching_mean_class_pct'))}% "
+        f"(majority map {_fmt(majority.get('matching_mean_class_pct'))}%), "
+        f"matching {_fmt(metrics.get('matching_pct'))}% ({_fmt(majority.get('matching_pct'))}%)"
+    )
 
 
 def _pct(value) -> str:

@@ -162,9 +162,15 @@ def _check_maps(maps: Mapping) -> None:
 
 
 def plot_material_maps(
-    maps: Mapping, class_names: Sequence[str], path: Path | str, dpi: int = 120
+    maps: Mapping,
+    class_names: Sequence[str],
+    path: Path | str,
+    dpi: int = 120,
+    title: str | None = None,
 ) -> Path:
-    """Rows = views; columns = ground truth | prediction | difference (figure 5B)."""
+    """Rows = views; columns = ground truth | prediction | difference (figure 5B).
+
+    `title` replaces the default one (the image-form matching of all views)."""
     _check_maps(maps)
     views = maps["gt"].shape[0]
     shade = maps.get("shade")
@@ -188,10 +194,10 @@ def plot_material_maps(
     for c, name in enumerate(("ground truth", "prediction", "difference")):
         axes[0, c].set_title(name, fontsize=10)
     overall = maps.get("matching_pct_image")
-    if overall is not None:
-        fig.suptitle(
-            f"Material maps: {overall:.1f}% matching in the regions of interest", fontsize=11
-        )
+    if title is None and overall is not None:
+        title = f"Material maps: {overall:.1f}% matching in the regions of interest"
+    if title:
+        fig.suptitle(title, fontsize=11)
     used = np.concatenate([maps["gt"].reshape(-1), maps["pred"].reshape(-1)])
     fig.legend(
         handles=_legend_handles(class_names, True, used),
