@@ -1,0 +1,253 @@
+"""The results page generator on small fake run and sweep directories."""
+
+from __future__ import annotations
+
+import json
+import statistics
+import subprocess
+import sys
+from pathlib import Path
+
+import pytest
+import yaml
+
+from neuralfeels_sem.eval.results_page import main
+from tests.viz.test_sweep_plots import write_job
+
+SIM_CONFIG = {
+    "seed": 0,
+    "sensor": {"name": "sim", "rgbd": {"depth_noise_std": 0.0}},
+    "object": {"name": "plushie"},
+    "classifier": {"_target_": "neuralfeels_sem.perception.classifier.MaterialClassifier"},
+    "mapping": {
+        "pose": "gt",
+        "mapper": {"use_camera_mask": True, "tactile_depth": {"source": "gt"}},
+    },
+}
+
+
+def run_metrics(
+    mean_class: float,
+    matching: float,
+    majority_mean_class: float,
+    majority_matching: float,
+    material: str,
+    mesh: float = 90.0,
+    fscore: float = 0.99,
+    accuracy: float = 0.98,
+    coverage: float = 0.75,
+    all_touches: float = 0.735,
+    **extra,
+) -> dict:
+    return {
+        "matching_mean_class_pct": mean_class,
+        "matching_pct": matching,
+        "matching_mesh_pct": mesh,
+        "fscore_5mm": fscore,
+        "baseline_majority": {
+            "matching_mean_class_pct": majority_mean_class,
+            "matching_pct": majority_matching,
+            "material": material,
+        },
+        "margin_over_majority": {
+            "matching_mean_class_pct": mean_class - majority_mean_class,
+            "matching_pct": matching - majority_matching,
+        },
+        "classifier_accuracy": {
+            "overall": accuracy,
+            "coverage": coverage,
+            "accuracy_all_touches": all_touches,
+        },
+        "wall_s": 70.0,
+        **extra,
+    }
+
+
+def cells(page: str, first: str) -> list[str]:
+    """The cells of the table row whose first cell is `first`."""
+    for line in page.splitlines():
+        parts = [c.strip() for c in line.strip().strip("|").split("|")]
+        if line.startswith("|") and parts[0] == first:
+            return parts
+    raise AssertionError(f"no row {first!r} in:\n{page}")
+
+
+def section(page: str, title: str) -> str:
+    return page.split(f"## {title}\n", 1)[1].split("\n## ", 1)[0]
+
+
+def generate(tmp_path: Path, *dirs: Path) -> str:
+    out = tmp_path / "docs" / "results.md"
+    assert main(["--out", str(out), *map(str, dirs)]) == 0
+    return out.read_text()
+
+
+PATCHED = [97.0, 91.0, 95.0, 99.0]  # mean-class per seed 0-3
+
+
+@pytest.fixture
+def object_sweep(tmp_path: Path) -> Path:
+    """multi_material-like sweep: patched_toy x 4 seeds, patchwork x 2, yarn_ball x 2, one failure."""
+    sweep = tmp_path / "multirun" / "mm"
+    k = 0
+    bookkeeping = ["experiment=multi_material", "launcher=joblib"]
+    for seed, value in enumerate(PATCHED):
+        metrics = run_metrics(
+            value,
+            matching=96.0 + seed,
+            majority_mean_class=50.0,
+            majority_matching=54.0 + seed,
+            material="plastic",
+            mesh=90.0 + seed,
+            fscore=0.99 + 0.002 * seed,
+            accuracy=0.99,
+            coverage=0.6 + 0.1 * seed,
+            oracles=["object_pose", "camera_mask"],
+        )
+        write_job(sweep, str(k), [*bookkeeping, "object=patched_toy", f"seed={seed}"], metrics)
+        k += 1
+    for seed, value in ((0, 80.0), (1, 70.0)):
+        metrics = run_metrics(value, 85.0, 25.0, 33.0, "plastic", oracles=["object_pose"])
+        # patchwork's runs record one oracle less: the source line says so per group.
+        write_job(sweep, str(k), [*bookkeeping, "object=patchwork", f"seed={seed}"], metrics)
+        k += 1
+    for seed, (acc, cov) in enumerate(((1.0, 0.8), (0.9, 0.6))):
+        metrics = run_metrics(
+            100.0,
+            100.0,
+            100.0,
+            100.0,
+            "fabric",
+            fscore=0.98,
+            accuracy=acc,
+            coverage=cov,
+            all_touches=acc * cov,
+            oracles=["object_pose"],
+        )
+        write_job(sweep, str(k), [*bookkeeping, "object=yarn_ball", f"seed={seed}"], metrics)
+        k += 1
+    write_job(sweep, str(k), ["object=patchwork", "seed=2"], None, error="NoDataError: no touches")
+    return sweep
+
+
+def test_multi_material_row_holds_the_per_seed_figures_and_the_floor(
+    tmp_path: Path, object_sweep: Path
+) -> None:
+    page = generate(tmp_path, object_sweep)
+    multi = section(page, "Multi-material objects")
+    row = cells(multi, "`patched_toy`")
+    assert row[1] == "0-3"
+    assert row[2] == "97.0, 91.0, 95.0, 99.0"
+    mean, std = statistics.mean(PATCHED), statistics.stdev(PATCHED)
+    assert row[3] == f"**{mean:.1f} ± {std:.1f}**" == "**95.5 ± 3.4**"
+    assert row[4] == "50.0 (plastic)"
+    assert row[5] == f"+{mean - 50.0:.1f}"
+    assert row[6] == "97.5 (55.5)"  # matching beside the majority map's matching
+    assert row[7] == "91.5"  # on mesh
+    assert row[8] == "0.993"
+    assert row[9] == "99.0"  # classifier on judged touches, %
+    assert row[10] == "75.0"  # coverage, %
+    row = cells(multi, "`patchwork`")
+    assert row[1:6] == ["0-1", "80.0, 70.0", "**75.0 ± 7.1**", "25.0 (plastic)", "+50.0"]
+    # The single-material object is not scored by matching.
+    assert "yarn_ball" not in multi
+
+
+def test_single_material_objects_are_reported_by_the_classifier(
+    tmp_path: Path, object_sweep: Path
+) -> None:
+    page = generate(tmp_path, object_sweep)
+    single = section(page, "Single-material objects")
+    row = cells(single, "`yarn_ball`")
+    all_touches = [100 * 1.0 * 0.8, 100 * 0.9 * 0.6]
+    spread = f"{statistics.stdev(all_touches):.1f}"
+    assert row[1:] == ["2", "0-1", "95.0 ± 7.1", "70.0 ± 14.1", f"67.0 ± {spread}", "0.980 ± 0.000"]
+    assert "mean-class" not in single.split("|", 1)[1]
+
+
+def test_header_sources_oracles_and_failures(tmp_path: Path, object_sweep: Path) -> None:
+    page = generate(tmp_path, object_sweep)
+    assert "generated" in page.splitlines()[2].lower()
+    assert "python -m neuralfeels_sem.eval.results_page --out" in page
+    assert str(object_sweep.name) in page.split("```")[1]
+    sources = section(page, "Sources")
+    assert "(sweep: 8 runs with metrics.json; 1 failed: 8)" in sources
+    assert (
+        "  - oracles (4 runs, from metrics.json): ground-truth object pose (mapping.pose=gt); "
+        "the simulator's camera object mask" in sources
+    )
+    assert (
+        "  - oracles (4 runs, from metrics.json): ground-truth object pose (mapping.pose=gt)\n"
+        in sources
+    )
+    assert "  - machine/load: not recorded; wall time per run 70 s" in sources
+
+
+def test_ablation_sweep_gets_a_settings_table(tmp_path: Path) -> None:
+    sweep = tmp_path / "ablation"
+    k = 0
+    for pose, value, error in (("gt", 90.0, None), ("track", 60.0, 30.0)):
+        for seed in (0, 1):
+            extra = {} if error is None else {"pose_error_mm": error + seed}
+            metrics = run_metrics(value + seed, 95.0, 50.0, 54.0, "plastic", fscore=0.9, **extra)
+            overrides = ["object=patched_toy", f"mapping.pose={pose}", "sensor.duration_s=3"]
+            write_job(sweep, str(k), [*overrides, f"seed={seed}"], metrics)
+            k += 1
+    page = generate(tmp_path, sweep)
+    other = section(page, "Other settings")
+    assert "Every run here: `sensor.duration_s=3`." in other
+    row = cells(other, "object=patched_toy, mapping.pose=track")
+    assert row[1:] == ["2", "**60.5 ± 0.7**", "50.0 (plastic)", "+10.5", "95.0 (54.0)", "0.900"] + [
+        "30.50"
+    ]
+    assert cells(other, "object=patched_toy, mapping.pose=gt")[-1] == "n/a"
+    # Runs with settings never reach the object tables.
+    assert "No default-config multi-material runs." in page
+
+
+def test_single_run_oracles_come_from_its_config(tmp_path: Path) -> None:
+    run = tmp_path / "outputs" / "map" / "plushie"
+    (run / ".hydra").mkdir(parents=True)
+    (run / ".hydra" / "config.yaml").write_text(yaml.safe_dump(SIM_CONFIG))
+    (run / ".hydra" / "overrides.yaml").write_text(yaml.safe_dump(["sensor=sim"]))
+    metrics = run_metrics(70.0, 97.0, 50.0, 96.0, "fabric", machine={"cpus": 2}, load_avg=1.2)
+    metrics["config"] = {"object": "plushie", "seed": 0}
+    (run / "metrics.json").write_text(json.dumps(metrics))
+    page = generate(tmp_path, run)
+    assert cells(section(page, "Multi-material objects"), "`plushie`")[1:4] == [
+        "0",
+        "70.0",
+        "**70.0 ± 0.0**",
+    ]
+    line = section(page, "Sources")
+    assert "(run directory)" in line
+    assert "(from .hydra/config.yaml)" in line
+    for words in ("ground-truth object pose", "camera object mask", "contact depth", "noise-free"):
+        assert words in line
+    assert "ground-truth material labels" not in line
+    assert "machine/load: cpus 2; load average 1.2" in line
+
+
+def test_bad_input_is_one_line_and_exit_code_2(
+    tmp_path: Path, capsys: pytest.CaptureFixture
+) -> None:
+    empty = tmp_path / "empty"
+    (empty / "0").mkdir(parents=True)
+    assert main([str(empty)]) == 2
+    err = capsys.readouterr().err.strip()
+    assert err.startswith("error: ") and str(empty) in err and "\n" not in err
+    missing = tmp_path / "nope"
+    proc = subprocess.run(
+        [sys.executable, "-m", "neuralfeels_sem.eval.results_page", str(missing)],
+        capture_output=True,
+        text=True,
+    )
+    assert proc.returncode == 2
+    assert proc.stderr.strip() == f"error: {missing}: no such directory"
+
+
+def test_without_out_the_page_goes_to_stdout(
+    tmp_path: Path, object_sweep: Path, capsys: pytest.CaptureFixture
+) -> None:
+    assert main([str(object_sweep)]) == 0
+    assert capsys.readouterr().out.startswith("# Results\n")
