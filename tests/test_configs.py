@@ -99,6 +99,9 @@ def test_wrong_type_fails_at_compose() -> None:
         ["mapping.mapper.label_vote_support_radius=-0.01"],
         ["sensor.alternate_axis=[0,0,0]"],
         ["sensor.alternate_every_s=0"],
+        ["eval.mesh_match_tolerance_m=0"],
+        ["eval.mesh_match_tolerance_m=-0.005"],
+        ["eval.mesh_match_tolerance_m=nan"],
     ],
 )
 def test_out_of_range_value_is_a_config_error(overrides: list[str]) -> None:

@@ -202,6 +202,8 @@ class RunScorer:
         except (ValueError, RuntimeError, MemoryError) as exc:
             log.error("mesh extraction failed: %s", exc)
             out.update({"fscore_5mm": None, "chamfer_mm": None})
+            if self.matching is not None:
+                out["matching_mesh_pct"] = out["matching_mesh_mean_class_pct"] = None
             out["notes"].append(
                 f"mesh extraction failed ({exc}): shape-aware matching and shape metrics not computed"
             )

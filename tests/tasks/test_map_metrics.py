@@ -1,0 +1,107 @@
+"""RunScorer on an analytic field: majority baseline, shape-aware matching, failed extraction."""
+
+from __future__ import annotations
+
+import numpy as np
+import pytest
+import torch
+from torch import nn
+
+from neuralfeels_sem.errors import NoDataError
+from neuralfeels_sem.tasks import map_metrics
+from neuralfeels_sem.tasks.map_metrics import RunScorer
+from tests.eval.objects import RADIUS, two_material_sphere
+
+
+class SphereField(nn.Module):
+    """SDF of a sphere of `radius`; plastic (0) where y > 0, fabric (2) elsewhere."""
+
+    def __init__(self, radius: float = RADIUS, everywhere: int | None = None) -> None:
+        super().__init__()
+        self.radius = radius
+        self.everywhere = everywhere
+        self.anchor = nn.Parameter(torch.zeros(1))  # gives the field a device
+
+    def sdf(self, x: torch.Tensor) -> torch.Tensor:
+        return x.norm(dim=1) - self.radius
+
+    def predict_material(self, x: torch.Tensor) -> torch.Tensor:
+        if self.everywhere is not None:
+            return torch.full((len(x),), self.everywhere, dtype=torch.int64)
+        return torch.where(x[:, 1] > 0, 0, 2)
+
+
+@pytest.fixture(scope="module")
+def scorer() -> RunScorer:
+    return RunScorer(
+        two_material_sphere(),
+        num_surface_samples=3000,
+        image_views=2,
+        image_size=64,
+        image_elevation_deg=30.0,
+        fscore_thresholds_mm=[5.0],
+        shape_samples=3000,
+        mesh_resolution=48,
+        seed=0,
+        mesh_match_tolerance_m=0.005,
+    )
+
+
+def test_a_right_field_beats_the_majority_map(scorer: RunScorer) -> None:
+    out, mesh = scorer.field_metrics(SphereField(), bound=1.2 * RADIUS)
+    assert mesh is not None and out["notes"] == []
+    assert out["matching_pct"] == 100.0 and out["matching_mean_class_pct"] == 100.0
+    assert out["matching_miou_pct"] == 100.0
+    assert out["matching_mesh_pct"] > 97.0  # labels at the mesh's vertices, border cells differ
+    majority = scorer.majority_baseline()
+    assert majority["matching_mean_class_pct"] == pytest.approx(50.0)
+    labels = scorer.matching.labels
+    assert majority["matching_pct"] == pytest.approx(
+        100.0 * np.bincount(labels).max() / len(labels)
+    )
+    assert majority["matching_mesh_pct"] == majority["matching_pct"]
+
+
+def test_a_constant_field_scores_the_majority_figures(scorer: RunScorer) -> None:
+    majority = scorer.majority_baseline()
+    field = SphereField(everywhere=scorer.matching.majority_class)
+    out, _ = scorer.field_metrics(field, bound=1.2 * RADIUS)
+    for key in ("matching_pct", "matching_mean_class_pct", "matching_miou_pct"):
+        assert out[key] == pytest.approx(majority[key]), key
+
+
+def test_a_misplaced_surface_costs_only_the_shape_aware_form(scorer: RunScorer) -> None:
+    out, _ = scorer.field_metrics(SphereField(radius=RADIUS + 0.01), bound=1.5 * RADIUS)
+    assert out["matching_pct"] == 100.0  # the field is still right at the true surface
+    assert out["matching_mesh_pct"] == 0.0  # but its surface is 1 cm off everywhere
+
+
+def test_final_metrics_carry_curves_margins_and_baselines(scorer: RunScorer) -> None:
+    field = SphereField()
+    scorer.score(field, 0, 0.0)
+    baseline, _ = scorer.field_metrics(SphereField(everywhere=3), bound=1.2 * RADIUS)
+    metrics, _ = scorer.final_metrics(field, 1.2 * RADIUS, baseline)
+    assert metrics["matching_mean_class_curve"][-1] == [0, 0.0, 100.0]
+    assert metrics["baseline"]["matching_mean_class_pct"] == 0.0  # wood is on no face
+    assert metrics["margin_over_majority"]["matching_mean_class_pct"] == pytest.approx(50.0)
+    state = scorer.state()
+    assert state["mean_class_curve"] == metrics["matching_mean_class_curve"]
+
+
+def test_a_failed_extraction_keeps_every_other_figure(scorer: RunScorer, monkeypatch) -> None:
+    def broken(*args, **kwargs):
+        raise ValueError("marching cubes ran out of patience")
+
+    monkeypatch.setattr(map_metrics, "extract_mesh", broken)
+    out, mesh = scorer.field_metrics(SphereField(), bound=1.2 * RADIUS)
+    assert mesh is None and out["matching_mean_class_pct"] == 100.0
+    assert out["matching_mesh_pct"] is None and out["fscore_5mm"] is None
+    assert any("mesh extraction failed" in note for note in out["notes"])
+
+    def empty(*args, **kwargs):
+        raise NoDataError("no zero crossing")
+
+    monkeypatch.setattr(map_metrics, "extract_mesh", empty)
+    out, _ = scorer.field_metrics(SphereField(), bound=1.2 * RADIUS)
+    assert out["matching_mesh_pct"] == 0.0 and out["fscore_5mm"] == 0.0  # no surface at all
+    assert out["notes"] == ["no zero crossing"]
