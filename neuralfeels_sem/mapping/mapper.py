@@ -301,7 +301,7 @@ class OnlineMapper:
 
     @property
     def trained_on(self) -> dict:
-        """What the field actually learned from (DESIGN.md: metrics.json `trained_on`)."""
+        """What the field actually learned from (docs/design.md: metrics.json `trained_on`)."""
         return {
             "frames": self.frames_seen,
             "camera_points": self.camera_points_total,

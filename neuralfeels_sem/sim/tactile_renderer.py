@@ -417,7 +417,7 @@ def contact_sheet(
 
     Each material is pressed at the pole (object z, wood's end grain); the materials in
     `side_views` are pressed on the equator too, where the wood runs along its grain.
-    Used for the README figure (docs/images/tactile_materials.png) and to eyeball realism.
+    Draws docs/images/tactile_materials.png (shown in docs/simulation.md); also to eyeball realism.
     """
     import trimesh  # only this figure needs a primitive mesh
 

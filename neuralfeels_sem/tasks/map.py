@@ -3,7 +3,7 @@
     python run.py sensor=sim object=plushie
     python run.py object=patched_toy mapping.resume=outputs/map/.../checkpoint.pt
 
-Writes the run-output contract of DESIGN.md into the run directory: metrics.json,
+Writes the run-output contract of docs/design.md into the run directory: metrics.json,
 material_mesh.ply, matching_curve.png, material_maps.png, progression.png,
 checkpoint.pt (every mapping.checkpoint_every frames and at the end) and touches.csv.
 """
