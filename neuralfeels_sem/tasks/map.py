@@ -13,6 +13,8 @@ from __future__ import annotations
 import csv
 import json
 import logging
+import os
+import platform
 import time
 from pathlib import Path
 
@@ -76,6 +78,18 @@ def oracles_used(cfg: DictConfig) -> list[str]:
         "material_labels": str(cfg.classifier.get("_target_", "")).endswith("OracleClassifier"),
     }
     return [name for name, on in used.items() if on]
+
+
+def machine_info(device) -> dict:
+    """What a timing depends on: the machine, its load and the threads torch used."""
+    import torch
+
+    return {
+        "cpu": platform.processor() or platform.machine(),
+        "cpus": os.cpu_count(),
+        "torch_threads": torch.get_num_threads(),
+        "device": str(device),
+    }
 
 
 def model_config(cfg: DictConfig) -> dict:
@@ -216,6 +230,8 @@ def map_object(cfg: DictConfig, obj, sensor, out: Path) -> dict:
         "wall_s": wall_s,
         "sensor_time_s": sensor_time,
         "realtime_factor": sensor_time / wall_s if wall_s > 0 else None,
+        "machine": machine_info(device),
+        "load_avg": [round(x, 2) for x in os.getloadavg()],  # 1, 5, 15 min at the end
         "trained_on": trained_on,
         "pose_source": pose_source.name,
         "oracles": oracles_used(cfg),

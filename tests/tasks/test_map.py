@@ -84,6 +84,9 @@ def test_map_writes_the_run_output_contract(tiny_run: Path) -> None:
     # Measured, not estimated: sensor time over wall time.
     assert metrics["realtime_factor"] == pytest.approx(metrics["sensor_time_s"] / metrics["wall_s"])
     assert metrics["sensor_time_s"] == pytest.approx(1.6)
+    # A timing is only worth quoting with the machine and its load.
+    assert metrics["machine"]["cpus"] >= 1 and metrics["machine"]["torch_threads"] >= 1
+    assert metrics["machine"]["device"] == "cpu" and len(metrics["load_avg"]) == 3
     # Even a toy run beats the untrained field it is read against.
     assert metrics["matching_pct"] > metrics["baseline"]["matching_pct"] + 20
     assert metrics["fscore_5mm"] > metrics["baseline"]["fscore_5mm"]
