@@ -125,7 +125,9 @@ def _mean_std(values: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
     return mean, std
 
 
-def _heatmap(ax, shown: np.ndarray, texts: list[list[str]], fingers, materials, title: str):
+def _heatmap(
+    ax, shown: np.ndarray, texts: list[list[str]], fingers, materials, title: str, ylabel=True
+):
     image = ax.imshow(np.ma.masked_invalid(shown), cmap="viridis", vmin=0, vmax=100)
     for i in range(len(fingers)):
         for j in range(len(materials)):
@@ -134,7 +136,8 @@ def _heatmap(ax, shown: np.ndarray, texts: list[list[str]], fingers, materials, 
     ax.set_xticks(range(len(materials)), materials)
     ax.set_yticks(range(len(fingers)), fingers)
     ax.set_xlabel("material")
-    ax.set_ylabel("DIGIT sensor")
+    if ylabel:
+        ax.set_ylabel("DIGIT sensor")
     ax.set_title(title, fontsize=9)
     return image
 
@@ -177,7 +180,7 @@ def plot_finger_material(runs: list[dict], out_dir: Path, dpi: int = 120) -> lis
             [cell(all_touch[i, j]) for j in range(len(materials))] for i in range(len(fingers))
         ]
         title = "Accuracy over all touches\n(an abstention counts as not correct)"
-        _heatmap(right, all_touch, texts, fingers, materials, title)
+        _heatmap(right, all_touch, texts, fingers, materials, title, ylabel=False)
     fig.colorbar(image, ax=fig.axes, label="[%]")
     paths = [_save(fig, out_dir / "single_material_heatmap.png", dpi)]
 
