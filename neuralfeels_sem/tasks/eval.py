@@ -27,8 +27,8 @@ from neuralfeels_sem.tasks.map import (
     build_scorer,
     model_config,
 )
-from neuralfeels_sem.tasks.map_outputs import print_summary, write_pictures
 from neuralfeels_sem.utils.device import resolve_device
+from neuralfeels_sem.viz.run_report import print_summary, write_pictures
 
 log = logging.getLogger(__name__)
 
@@ -97,6 +97,6 @@ def run(cfg: DictConfig) -> dict:
     metrics.setdefault("realtime_factor", None)
     (out / "metrics.json").write_text(json.dumps(metrics, indent=2, default=_json_default))
     if cfg.viz.plots:
-        write_pictures(scorer, metrics, run_dir / "progression", out, int(cfg.viz.dpi))
+        write_pictures(scorer.class_names, metrics, run_dir / "progression", out, int(cfg.viz.dpi))
     print_summary(metrics, out)
     return metrics

@@ -24,13 +24,13 @@ from omegaconf import DictConfig, OmegaConf
 from tqdm import tqdm
 
 from neuralfeels_sem.errors import NoDataError
+from neuralfeels_sem.eval.run_scorer import RunScorer
 from neuralfeels_sem.mapping.checkpoint import load_checkpoint, save_checkpoint
 from neuralfeels_sem.mapping.pose_source import build_pose_source
 from neuralfeels_sem.sensors.factory import build_sensor
-from neuralfeels_sem.tasks.map_metrics import RunScorer
-from neuralfeels_sem.tasks.map_outputs import print_summary, write_pictures
 from neuralfeels_sem.tasks.runner import output_dir
 from neuralfeels_sem.utils.device import resolve_device
+from neuralfeels_sem.viz.run_report import print_summary, write_pictures
 
 log = logging.getLogger(__name__)
 
@@ -249,7 +249,7 @@ def map_object(cfg: DictConfig, obj, sensor, out: Path) -> dict:
     (out / "metrics.json").write_text(json.dumps(metrics, indent=2, default=_json_default))
     write_touches(scorer.touch_log, class_names, out / "touches.csv")
     if cfg.viz.plots:
-        write_pictures(scorer, metrics, snapshots_dir, out, int(cfg.viz.dpi))
+        write_pictures(scorer.class_names, metrics, snapshots_dir, out, int(cfg.viz.dpi))
         pose_source.write_pictures(out, int(cfg.viz.dpi))
     print_summary(metrics, out)
     return metrics

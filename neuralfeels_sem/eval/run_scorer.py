@@ -1,4 +1,4 @@
-"""Scoring during and after a mapping run: what goes into metrics.json and the pictures.
+"""Scoring of a mapping run, during and after it: what goes into metrics.json and the pictures.
 
 `RunScorer` holds the fixed ground-truth samples, the matching curves, the touch log
 (every classified touch with its ground truth) and progression snapshots. Its state is

@@ -8,8 +8,8 @@ import torch
 from torch import nn
 
 from neuralfeels_sem.errors import NoDataError
-from neuralfeels_sem.tasks import map_metrics
-from neuralfeels_sem.tasks.map_metrics import RunScorer
+from neuralfeels_sem.eval import run_scorer
+from neuralfeels_sem.eval.run_scorer import RunScorer
 from tests.eval.objects import RADIUS, two_material_sphere
 
 
@@ -92,7 +92,7 @@ def test_a_failed_extraction_keeps_every_other_figure(scorer: RunScorer, monkeyp
     def broken(*args, **kwargs):
         raise ValueError("marching cubes ran out of patience")
 
-    monkeypatch.setattr(map_metrics, "extract_mesh", broken)
+    monkeypatch.setattr(run_scorer, "extract_mesh", broken)
     out, mesh = scorer.field_metrics(SphereField(), bound=1.2 * RADIUS)
     assert mesh is None and out["matching_mean_class_pct"] == 100.0
     assert out["matching_mesh_pct"] is None and out["fscore_5mm"] is None
@@ -101,7 +101,7 @@ def test_a_failed_extraction_keeps_every_other_figure(scorer: RunScorer, monkeyp
     def empty(*args, **kwargs):
         raise NoDataError("no zero crossing")
 
-    monkeypatch.setattr(map_metrics, "extract_mesh", empty)
+    monkeypatch.setattr(run_scorer, "extract_mesh", empty)
     out, _ = scorer.field_metrics(SphereField(), bound=1.2 * RADIUS)
     assert out["matching_mesh_pct"] == 0.0 and out["fscore_5mm"] == 0.0  # no surface at all
     assert out["notes"] == ["no zero crossing"]

@@ -1,4 +1,4 @@
-"""Pictures and the terminal summary of a finished mapping run."""
+"""Pictures and the terminal summary of a finished mapping run, from its metrics.json data."""
 
 from __future__ import annotations
 
@@ -7,7 +7,6 @@ from pathlib import Path
 
 import numpy as np
 
-from neuralfeels_sem.tasks.map_metrics import RunScorer
 from neuralfeels_sem.viz.plots import (
     plot_fscore_curve,
     plot_matching_curve,
@@ -29,9 +28,9 @@ def load_snapshots(directory: Path) -> list[tuple[float, dict]]:
 
 
 def write_pictures(
-    scorer: RunScorer, metrics: dict, snapshots_dir: Path, out: Path, dpi: int
+    class_names: list[str], metrics: dict, snapshots_dir: Path, out: Path, dpi: int
 ) -> None:
-    names = scorer.class_names
+    names = class_names
     if metrics["matching_curve"]:
         majority = metrics.get("baseline_majority") or {}
         plot_matching_curve(
