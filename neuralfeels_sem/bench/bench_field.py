@@ -26,13 +26,15 @@ MIN_STEPS, MAX_STEPS, TIME_BUDGET_S = 3, 30, 6.0
 def _measure(log2_table_size: int, sparse: bool, device: str) -> dict:
     import torch.nn.functional as F
 
-    from neuralfeels_sem.configs.model import HashGridConfig
     from neuralfeels_sem.fields import FieldAdam, SemanticField
+    from neuralfeels_sem.fields.hash_grid import HashGridConfig
+    from neuralfeels_sem.fields.semantic_field import SemanticFieldConfig
 
     rss0 = resource.getrusage(resource.RUSAGE_SELF).ru_maxrss
     torch.manual_seed(0)
     encoding = HashGridConfig(log2_table_size=log2_table_size, sparse_grad=sparse)
-    field = SemanticField(NUM_CLASSES, bound=0.1, encoding=encoding).to(device)
+    config = SemanticFieldConfig(num_classes=NUM_CLASSES, encoding=encoding)
+    field = SemanticField(config, bound=0.1).to(device)
     opt = FieldAdam(field.parameters(), lr=1e-3)
     g = torch.Generator(device=device).manual_seed(0)
 

@@ -8,53 +8,31 @@ x 10 samples + 256 material points = 4096 points per step). Data: the analytic s
 
 from __future__ import annotations
 
-import dataclasses
 import os
 import time
 
 import torch
+from hydra.utils import instantiate
 
-from neuralfeels_sem.configs.mapping import MapperConfig, OptimizerConfig
-from neuralfeels_sem.configs.model import HashGridConfig, MaterialHeadConfig, SdfHeadConfig
-from neuralfeels_sem.fields.optim import FieldAdam
-from neuralfeels_sem.fields.semantic_field import SemanticField
-from neuralfeels_sem.mapping.mapper import OnlineMapper
+from neuralfeels_sem.fields.optim import OptimizerConfig
+from neuralfeels_sem.fields.semantic_field import SemanticField, SemanticFieldConfig
+from neuralfeels_sem.mapping.mapper import MapperConfig, OnlineMapper
 from neuralfeels_sem.mapping.sphere_scene import sphere_frames
-from neuralfeels_sem.perception.tactile_depth import TactileDepth
 from neuralfeels_sem.utils.device import resolve_device
 
 
-def default_mapper(num_classes: int = 4) -> OnlineMapper:
-    """An OnlineMapper built exactly from the config schema defaults."""
-    cfg = dataclasses.asdict(MapperConfig(num_classes=num_classes))
-    for key in ("_target_", "_partial_"):
-        cfg.pop(key)
-    depth = cfg.pop("tactile_depth")
-    depth.pop("_target_")
-    opt = OptimizerConfig()
-    field = SemanticField(
-        num_classes,
-        bound=0.1,
-        encoding=HashGridConfig(),
-        sdf=SdfHeadConfig(),
-        material=MaterialHeadConfig(),
-    )
-
-    def factory(params):
-        return FieldAdam(
-            params, lr=opt.lr, betas=tuple(opt.betas), eps=opt.eps, weight_decay=opt.weight_decay
-        )
-
-    return OnlineMapper(
-        field, factory, tactile_depth=TactileDepth(**depth), device=resolve_device("cpu"), **cfg
-    )
+def default_mapper(num_classes: int = 4, **changes) -> OnlineMapper:
+    """An OnlineMapper built from the config defaults (the command line's), plus `changes`."""
+    field = SemanticField(SemanticFieldConfig(num_classes=num_classes), bound=0.1)
+    factory = instantiate(OptimizerConfig())
+    config = MapperConfig(num_classes=num_classes, **changes)
+    return OnlineMapper(config, field, factory, resolve_device("cpu"))
 
 
 def run() -> dict:
     torch.manual_seed(0)
     frames = sphere_frames(12, touches_per_frame=4)
-    mapper = default_mapper()
-    mapper.warmup_steps = 0
+    mapper = default_mapper(warmup_steps=0)
     for frame, labels in frames[:4]:
         mapper.add_frame(frame, labels)  # fills the window; also warms up the allocator
 
@@ -80,7 +58,7 @@ def run() -> dict:
         "step_ms": round(1000 * step_s, 1),
         "step_cpu_ms": round(1000 * step_cpu_s, 1),
         "load_avg_1min": round(os.getloadavg()[0], 2),
-        "steps_per_frame": mapper.steps_per_frame,
+        "steps_per_frame": mapper.config.steps_per_frame,
         "add_frame_per_s": round(1.0 / frame_s, 2),
         "frame_points_ms": round(1000 * ingest_s, 1),
         "threads": torch.get_num_threads(),

@@ -16,7 +16,7 @@ import torch
 
 from neuralfeels_sem.mapping.known_shape import GridSdf, mesh_sdf_grid
 from neuralfeels_sem.mapping.pose_source import average_3d_error
-from neuralfeels_sem.mapping.pose_tracker import PoseTracker, se3_exp
+from neuralfeels_sem.mapping.pose_tracker import PoseTracker, TrackerConfig, se3_exp
 from neuralfeels_sem.objects.library import make_object
 from neuralfeels_sem.utils.geometry import transform_points
 
@@ -61,12 +61,13 @@ def run() -> dict:
     start = time.perf_counter()
     grid = mesh_sdf_grid(obj.mesh, resolution=96, use_disk=False)
     grid_s = time.perf_counter() - start
-    tracker = PoseTracker(rotation_scale=obj.bounds_radius)
+    tracker = PoseTracker(TrackerConfig(rotation_scale=obj.bounds_radius))
     known = _track(tracker, GridSdf(*grid), obj, truth)
 
-    from neuralfeels_sem.fields.semantic_field import SemanticField
+    from neuralfeels_sem.fields.semantic_field import SemanticField, SemanticFieldConfig
 
-    field = SemanticField(num_classes=len(CLASSES), bound=1.15 * obj.bounds_radius)
+    config = SemanticFieldConfig(num_classes=len(CLASSES))
+    field = SemanticField(config, bound=1.15 * obj.bounds_radius)
     # An untrained field's SDF is arbitrary: only the time per frame is meaningful here.
     learned = _track(tracker, field.sdf, obj, truth)
     learned = {k: learned[k] for k in ("ms_per_frame", "iterations", "sdf_evaluations", "points")}

@@ -11,6 +11,7 @@ from __future__ import annotations
 
 import importlib
 import pkgutil
+from typing import Any, TypeVar
 
 from hydra.core.config_store import ConfigStore
 from omegaconf import DictConfig, OmegaConf
@@ -19,6 +20,19 @@ from omegaconf.errors import OmegaConfBaseException
 from neuralfeels_sem.errors import ConfigError
 
 _registered = False
+T = TypeVar("T")
+
+
+def to_config(schema: type[T], node: Any) -> T:
+    """A config node (DictConfig, plain dict, or already an instance) as a `schema` instance.
+
+    Interpolations are resolved against the node's root first; building the dataclass runs
+    its range checks. Keys the node leaves out take the dataclass defaults.
+    """
+    if isinstance(node, schema):
+        return node
+    data = OmegaConf.to_container(node, resolve=True) if isinstance(node, DictConfig) else node
+    return OmegaConf.to_object(OmegaConf.merge(OmegaConf.structured(schema), data))
 
 
 def register_configs() -> None:

@@ -15,6 +15,7 @@ the batch touched, so an optimiser step costs O(points), not O(table): use
 from __future__ import annotations
 
 import math
+from dataclasses import dataclass
 
 import torch
 import torch.nn.functional as F
@@ -27,35 +28,50 @@ HASH_PRIMES = (1, 2654435761, 805459861)
 _CORNERS = torch.tensor([[(i >> d) & 1 for d in range(3)] for i in range(8)], dtype=torch.long)
 
 
+@dataclass
+class HashGridConfig:
+    """Multiresolution hash grid (`model.encoding`); defaults are the paper's except
+    log2_table_size (CPU)."""
+
+    num_levels: int = 16
+    features_per_level: int = 2
+    base_resolution: int = 16
+    per_level_scale: float = 1.3819
+    # The paper uses 24; 2^24 rows x 11 hashed levels is 1.5 GB of float32 before Adam.
+    log2_table_size: int = 19
+    init_scale: float = 1e-4
+    # Row-sparse table gradients (needs an optimiser that takes them: FieldAdam).
+    sparse_grad: bool = True
+
+    def __post_init__(self) -> None:
+        for name in ("num_levels", "features_per_level", "base_resolution"):
+            if getattr(self, name) < 1:
+                raise ValueError(f"model.encoding.{name}={getattr(self, name)} must be >= 1")
+        if self.per_level_scale < 1.0:
+            raise ValueError(f"model.encoding.per_level_scale={self.per_level_scale} must be >= 1")
+        if not 4 <= self.log2_table_size <= 30:
+            raise ValueError(
+                f"model.encoding.log2_table_size={self.log2_table_size} must be in [4, 30]"
+            )
+        if self.init_scale < 0:
+            raise ValueError(f"model.encoding.init_scale={self.init_scale} must be >= 0")
+
+
 class HashGridEncoding(nn.Module):
     """Encode points in the unit cube [0, 1]^3 as (N, num_levels * features_per_level)."""
 
-    def __init__(
-        self,
-        num_levels: int = 16,
-        features_per_level: int = 2,
-        base_resolution: int = 16,
-        per_level_scale: float = 1.3819,
-        log2_table_size: int = 19,
-        init_scale: float = 1e-4,
-        sparse_grad: bool = True,
-    ) -> None:
+    def __init__(self, config: HashGridConfig | None = None) -> None:
         super().__init__()
-        if num_levels < 1 or features_per_level < 1 or base_resolution < 1:
-            raise ValueError(
-                f"num_levels={num_levels}, features_per_level={features_per_level} and "
-                f"base_resolution={base_resolution} must all be >= 1"
-            )
-        if per_level_scale < 1.0:
-            raise ValueError(f"per_level_scale={per_level_scale} must be >= 1")
-        if not 4 <= log2_table_size <= 30:
-            raise ValueError(f"log2_table_size={log2_table_size} must be in [4, 30]")
+        config = config or HashGridConfig()  # ranges: HashGridConfig.__post_init__
+        num_levels, features_per_level = config.num_levels, config.features_per_level
+        base_resolution, per_level_scale = config.base_resolution, config.per_level_scale
+        log2_table_size = config.log2_table_size
         self.num_levels = num_levels
         self.features_per_level = features_per_level
         self.base_resolution = base_resolution
         self.per_level_scale = per_level_scale
         self.log2_table_size = log2_table_size
-        self.sparse_grad = sparse_grad
+        self.sparse_grad = config.sparse_grad
         table_size = 2**log2_table_size
 
         resolutions = [
@@ -89,7 +105,7 @@ class HashGridEncoding(nn.Module):
             "_dense_corner_offsets", (strides[:, None, :] * _CORNERS).sum(-1), persistent=False
         )
         self.table = nn.Parameter(torch.empty(sum(rows), features_per_level))
-        self.init_scale = init_scale
+        self.init_scale = config.init_scale
         self.reset_parameters()
 
     def reset_parameters(self) -> None:

@@ -2,19 +2,62 @@
 
 from __future__ import annotations
 
+from dataclasses import dataclass
+
 import torch
 from torch import Tensor, nn
 
 from neuralfeels_sem.fields.mlp import MLP
-from neuralfeels_sem.fields.spherical_harmonics import SphericalHarmonicsEncoding
+from neuralfeels_sem.fields.spherical_harmonics import MAX_DEGREE, SphericalHarmonicsEncoding
+
+
+@dataclass
+class SdfHeadConfig:
+    """`model.sdf`: the SDF MLP on the hash-grid features."""
+
+    hidden_dim: int = 64
+    num_layers: int = 2
+
+    def __post_init__(self) -> None:
+        if self.hidden_dim < 1:
+            raise ValueError(f"model.sdf.hidden_dim={self.hidden_dim} must be >= 1")
+        if self.num_layers < 1:
+            raise ValueError(f"model.sdf.num_layers={self.num_layers} must be >= 1")
+
+
+@dataclass
+class MaterialHeadConfig:
+    """`model.material`: the material branch g([SH(dir) || x || z(x)])."""
+
+    # Concatenate z(x), the SDF MLP's last hidden features, to the material input.
+    concat_sdf_features: bool = True
+    # Concatenate the normalised position x (the paper's g([x || z(x)])).
+    include_position: bool = True
+    # Highest SH band of the direction from the object centre: 3 -> 16 coefficients.
+    sh_degree: int = 3
+    hidden_dim: int = 64
+    num_layers: int = 1
+    # Whether the material loss may move the SDF branch through z(x). Off by default:
+    # sparse touch labels should not bend the geometry.
+    backprop_to_sdf: bool = False
+
+    def __post_init__(self) -> None:
+        if not 0 <= self.sh_degree <= MAX_DEGREE:
+            raise ValueError(
+                f"model.material.sh_degree={self.sh_degree} must be in [0, {MAX_DEGREE}]"
+            )
+        if self.hidden_dim < 1:
+            raise ValueError(f"model.material.hidden_dim={self.hidden_dim} must be >= 1")
+        if self.num_layers < 1:
+            raise ValueError(f"model.material.num_layers={self.num_layers} must be >= 1")
 
 
 class SdfHead(nn.Module):
     """Encoding features -> (signed distance in normalised units (N,), hidden z(x) (N, H))."""
 
-    def __init__(self, in_dim: int, hidden_dim: int = 64, num_layers: int = 2) -> None:
+    def __init__(self, in_dim: int, config: SdfHeadConfig) -> None:
         super().__init__()
-        self.mlp = MLP(in_dim, hidden_dim, num_layers, 1)
+        self.mlp = MLP(in_dim, config.hidden_dim, config.num_layers, 1)
 
     @property
     def hidden_dim(self) -> int:
@@ -29,28 +72,21 @@ class MaterialHead(nn.Module):
     """g([SH(direction) || x || z(x)]) -> class logits (N, num_classes).
 
     The direction is from the object centre; x is the normalised position in [-1, 1]^3;
-    z(x) (the SDF MLP's last hidden features) is used when `sdf_feature_dim > 0`.
+    z(x) (the SDF MLP's last hidden features) is used when `sdf_feature_dim > 0` (the
+    field passes the SDF head's width when `config.concat_sdf_features`, else 0).
     """
 
-    def __init__(
-        self,
-        num_classes: int,
-        sdf_feature_dim: int = 0,
-        include_position: bool = True,
-        sh_degree: int = 3,
-        hidden_dim: int = 64,
-        num_layers: int = 1,
-    ) -> None:
+    def __init__(self, num_classes: int, sdf_feature_dim: int, config: MaterialHeadConfig) -> None:
         super().__init__()
         if num_classes < 2:
             raise ValueError(f"num_classes={num_classes} must be >= 2")
         if sdf_feature_dim < 0:
             raise ValueError(f"sdf_feature_dim={sdf_feature_dim} must be >= 0")
-        self.sh = SphericalHarmonicsEncoding(sh_degree)
-        self.include_position = include_position
+        self.sh = SphericalHarmonicsEncoding(config.sh_degree)
+        self.include_position = config.include_position
         self.sdf_feature_dim = sdf_feature_dim
-        in_dim = self.sh.out_dim + (3 if include_position else 0) + sdf_feature_dim
-        self.mlp = MLP(in_dim, hidden_dim, num_layers, num_classes)
+        in_dim = self.sh.out_dim + (3 if config.include_position else 0) + sdf_feature_dim
+        self.mlp = MLP(in_dim, config.hidden_dim, config.num_layers, num_classes)
         self.num_classes = num_classes
 
     def forward(self, x_normalised: Tensor, sdf_features: Tensor | None = None) -> Tensor:

@@ -9,17 +9,47 @@ Adam", as torch.optim.SparseAdam); bias correction uses the parameter's step cou
 A parameter first updated with a sparse gradient keeps its moments in one tensor
 `moments` (rows, 2, ...) (see `moments()`); others use torch Adam's state names.
 
-Config: `_target_: neuralfeels_sem.fields.optim.FieldAdam`, `_partial_: true`, then
-`factory(field.parameters())`, the same call as torch.optim.Adam.
+Config: `mapping.optimizer` is an OptimizerConfig (below): `_target_: ...FieldAdam`,
+`_partial_: true`, so `instantiate` gives `factory(field.parameters())`, the same call as
+torch.optim.Adam. FieldAdam's keyword defaults are the config's, and its ranges are checked
+once, by OptimizerConfig.
 """
 
 from __future__ import annotations
 
 import math
 from collections.abc import Iterable
+from dataclasses import dataclass, field
 
 import torch
 from torch import Tensor
+
+DEFAULT_BETAS = (0.9, 0.999)
+
+
+@dataclass
+class OptimizerConfig:
+    """`mapping.optimizer`; FieldAdam takes the hash grid's row-sparse gradients
+    (model.encoding.sparse_grad)."""
+
+    _target_: str = "neuralfeels_sem.fields.optim.FieldAdam"
+    _partial_: bool = True
+    lr: float = 3.0e-3
+    betas: list[float] = field(default_factory=lambda: list(DEFAULT_BETAS))
+    eps: float = 1.0e-8
+    weight_decay: float = 0.0
+
+    def __post_init__(self) -> None:
+        if self.lr <= 0:
+            raise ValueError(f"mapping.optimizer.lr={self.lr} must be > 0")
+        if len(self.betas) != 2 or not all(0.0 <= b < 1.0 for b in self.betas):
+            raise ValueError(
+                f"mapping.optimizer.betas={list(self.betas)} must be two values in [0, 1)"
+            )
+        if self.eps < 0 or self.weight_decay < 0:
+            raise ValueError(
+                f"mapping.optimizer eps={self.eps} and weight_decay={self.weight_decay} must be >= 0"
+            )
 
 
 class FieldAdam(torch.optim.Optimizer):
@@ -28,19 +58,12 @@ class FieldAdam(torch.optim.Optimizer):
     def __init__(
         self,
         params: Iterable[Tensor] | Iterable[dict],
-        lr: float = 1e-3,
-        betas: tuple[float, float] = (0.9, 0.999),
-        eps: float = 1e-8,
-        weight_decay: float = 0.0,
+        lr: float = OptimizerConfig.lr,
+        betas: tuple[float, float] = DEFAULT_BETAS,
+        eps: float = OptimizerConfig.eps,
+        weight_decay: float = OptimizerConfig.weight_decay,
     ) -> None:
-        if lr < 0:
-            raise ValueError(f"lr={lr} must be >= 0")
-        if not (0.0 <= betas[0] < 1.0 and 0.0 <= betas[1] < 1.0):
-            raise ValueError(f"betas={tuple(betas)} must be in [0, 1)")
-        if eps < 0:
-            raise ValueError(f"eps={eps} must be >= 0")
-        if weight_decay < 0:
-            raise ValueError(f"weight_decay={weight_decay} must be >= 0")
+        OptimizerConfig(lr=lr, betas=list(betas), eps=eps, weight_decay=weight_decay)  # ranges
         defaults = {"lr": lr, "betas": tuple(betas), "eps": eps, "weight_decay": weight_decay}
         super().__init__(params, defaults)
 

@@ -5,18 +5,40 @@ in [-1, 1]^3; points outside the cube are clamped onto its faces, so the SDF (an
 gradient, which is zero across the clamp) there is not meaningful: sample inside the bound.
 The SDF MLP predicts distance in normalised units and the field returns it in metres
 (times `bound`), so a unit-norm gradient in metres is the eikonal condition.
+
+`bound` is not a setting: the map task computes it from the object (BOUND_MARGIN times
+its bounding radius, tasks/map.py) and passes it beside the config.
 """
 
 from __future__ import annotations
 
-from collections.abc import Callable, Sequence
+from collections.abc import Callable
+from dataclasses import dataclass, field
 
 import torch
+from omegaconf import MISSING
 from torch import Tensor, nn
 
-from neuralfeels_sem.configs.model import HashGridConfig, MaterialHeadConfig, SdfHeadConfig
-from neuralfeels_sem.fields.hash_grid import HashGridEncoding
-from neuralfeels_sem.fields.heads import MaterialHead, SdfHead
+from neuralfeels_sem.fields.hash_grid import HashGridConfig, HashGridEncoding
+from neuralfeels_sem.fields.heads import MaterialHead, MaterialHeadConfig, SdfHead, SdfHeadConfig
+
+
+@dataclass
+class SemanticFieldConfig:
+    """`model`: the semantic neural field (SDF + material branches); conf/model/*.yaml."""
+
+    num_classes: int = MISSING  # conf/model: ${len:${materials}}
+    # Centre (metres, object frame) of the field's cube; its half-extent is computed.
+    center: list[float] = field(default_factory=lambda: [0.0, 0.0, 0.0])
+    encoding: HashGridConfig = field(default_factory=HashGridConfig)
+    sdf: SdfHeadConfig = field(default_factory=SdfHeadConfig)
+    material: MaterialHeadConfig = field(default_factory=MaterialHeadConfig)
+
+    def __post_init__(self) -> None:
+        if not isinstance(self.num_classes, int) or self.num_classes < 2:
+            raise ValueError(f"model.num_classes={self.num_classes} must be an integer >= 2")
+        if len(self.center) != 3:
+            raise ValueError(f"model.center={list(self.center)} must have 3 values")
 
 
 def _check_points(x: Tensor) -> None:
@@ -27,47 +49,23 @@ def _check_points(x: Tensor) -> None:
 class SemanticField(nn.Module):
     """Neural SDF with a parallel material-classification branch."""
 
-    def __init__(
-        self,
-        num_classes: int,
-        bound: float = 0.1,
-        center: Sequence[float] = (0.0, 0.0, 0.0),
-        encoding: HashGridConfig | None = None,
-        sdf: SdfHeadConfig | None = None,
-        material: MaterialHeadConfig | None = None,
-    ) -> None:
+    def __init__(self, config: SemanticFieldConfig, bound: float) -> None:
+        """`bound`: half-extent (metres) of the cube [-bound, bound]^3 around the centre."""
         super().__init__()
-        if num_classes < 2:
-            raise ValueError(f"num_classes={num_classes} must be >= 2")
         if bound <= 0:
             raise ValueError(f"bound={bound} must be > 0")
-        if len(center) != 3:
-            raise ValueError(f"center={list(center)} must have 3 values")
-        encoding = encoding or HashGridConfig()
-        sdf = sdf or SdfHeadConfig()
-        material = material or MaterialHeadConfig()
-        self.num_classes = num_classes
+        self.num_classes = config.num_classes
         self.bound = float(bound)
-        self.register_buffer("center", torch.tensor([float(c) for c in center]))
-        self.encoding = HashGridEncoding(
-            num_levels=encoding.num_levels,
-            features_per_level=encoding.features_per_level,
-            base_resolution=encoding.base_resolution,
-            per_level_scale=encoding.per_level_scale,
-            log2_table_size=encoding.log2_table_size,
-            init_scale=encoding.init_scale,
-            sparse_grad=encoding.sparse_grad,
-        )
-        self.sdf_head = SdfHead(self.encoding.out_dim, sdf.hidden_dim, sdf.num_layers)
+        self.register_buffer("center", torch.tensor([float(c) for c in config.center]))
+        self.encoding = HashGridEncoding(config.encoding)
+        self.sdf_head = SdfHead(self.encoding.out_dim, config.sdf)
+        material = config.material
         self.concat_sdf_features = material.concat_sdf_features
         self.backprop_to_sdf = material.backprop_to_sdf
         self.material_head = MaterialHead(
-            num_classes,
-            sdf_feature_dim=sdf.hidden_dim if material.concat_sdf_features else 0,
-            include_position=material.include_position,
-            sh_degree=material.sh_degree,
-            hidden_dim=material.hidden_dim,
-            num_layers=material.num_layers,
+            config.num_classes,
+            config.sdf.hidden_dim if material.concat_sdf_features else 0,
+            material,
         )
 
     def normalise(self, x: Tensor) -> Tensor:

@@ -18,6 +18,14 @@ from neuralfeels_sem.errors import ConfigError, DataError
 from neuralfeels_sem.mapping.mapper import OnlineMapper
 
 FORMAT_VERSION = 1
+# Keys an older `model` config carried that are not model settings (ignored when comparing,
+# so checkpoints written before they were dropped still resume): Hydra's instantiate keys,
+# and `bound`, declared (0.1) but always replaced by the one computed from the object.
+NOT_MODEL_SETTINGS = ("_target_", "_convert_", "bound")
+
+
+def _settings(model_config: dict) -> dict:
+    return {k: v for k, v in model_config.items() if k not in NOT_MODEL_SETTINGS}
 
 
 def field_signature(mapper: OnlineMapper) -> dict:
@@ -83,15 +91,16 @@ def load_checkpoint(
         raise ConfigError(
             f"checkpoint {path} was written for a different model ({', '.join(diff)} differ); resume with the model config it was trained with"
         )
+    saved_config = payload["model_config"]
     if (
         model_config is not None
-        and payload["model_config"] is not None
-        and payload["model_config"] != model_config
+        and saved_config is not None
+        and _settings(saved_config) != _settings(model_config)
     ):
         keys = sorted(
             k
-            for k in set(model_config) | set(payload["model_config"])
-            if model_config.get(k) != payload["model_config"].get(k)
+            for k in set(_settings(model_config)) | set(_settings(saved_config))
+            if model_config.get(k) != saved_config.get(k)
         )
         raise ConfigError(
             f"checkpoint {path} was written with a different model config (model.{', model.'.join(keys)}); resume with the same model settings"

@@ -1,18 +1,21 @@
 """The online mapper: turns incoming Frames into optimiser steps on a semantic neural field.
 
 Per frame: camera and tactile points go to the object frame (with the given pose, else
-the frame's `world_T_object`), the camera points become a keyframe, every touch joins a
-replay buffer (with its label when the classifier's label is usable), then
-`steps_per_frame` optimiser steps run (`warmup_steps` on the first frame with data).
-Each step draws rays from the keyframe window and from all touches, samples along them
-(sampling.py) and minimises the truncated-SDF, free-space, space-prior (space_prior.py),
-optional eikonal and material losses (losses.py).
+the frame's `world_T_object`; frame_points.py), the camera points become a keyframe and
+every touch joins the replay buffer with its label when the classifier's label is usable
+(memory.py, touch_memory.py, label_vote.py), then `steps_per_frame` optimiser steps run
+(`warmup_steps` on the first frame with data). Each step draws a batch from memory
+(batch.py, sampling.py, space_prior.py) and minimises the weighted losses (objective.py,
+losses.py). Counters: bookkeeping.py; random states for exact resume: rng_state.py.
+
+MapperConfig holds every setting and its only default; conf/mapping/online.yaml adds only
+what the schema cannot know (the class count and the seed).
 """
 
 from __future__ import annotations
 
-import random
 from collections.abc import Callable, Mapping
+from dataclasses import dataclass, field
 
 import numpy as np
 import torch
@@ -20,224 +23,167 @@ from torch import nn
 from tqdm import tqdm
 
 from neuralfeels_sem.errors import ConfigError, NoDataError, NumericalError
-from neuralfeels_sem.mapping.keyframes import KeyframeBuffer, TouchBuffer
-from neuralfeels_sem.mapping.losses import (
-    batch_bound,
-    eikonal_loss,
-    freespace_loss,
-    material_loss,
-    space_prior_loss,
-    truncated_sdf_loss,
-)
-from neuralfeels_sem.mapping.sampling import (
-    RaySamples,
-    random_indices,
-    sample_along_rays,
-    subsample,
-)
-from neuralfeels_sem.mapping.space_prior import SpaceCarvingPrior
-from neuralfeels_sem.perception.pointcloud import (
-    camera_points,
-    sensor_origin_and_axis,
-    tactile_points,
-)
-from neuralfeels_sem.perception.tactile_depth import TactileDepth
+from neuralfeels_sem.mapping.batch import BatchSampler, per_keyframe_losses
+from neuralfeels_sem.mapping.bookkeeping import TrainingLog
+from neuralfeels_sem.mapping.frame_points import PointExtractor
+from neuralfeels_sem.mapping.memory import MapMemory
+from neuralfeels_sem.mapping.objective import TERMS, MapperObjective
+from neuralfeels_sem.mapping.rng_state import capture_rng, restore_rng
+from neuralfeels_sem.materials import DEFAULT_MATERIALS
+from neuralfeels_sem.perception.tactile_depth import TactileDepth, TactileDepthConfig
 from neuralfeels_sem.perception.touch import TouchLabel
 from neuralfeels_sem.sensors.frame import Frame
 
-POSE_SOURCES = ("gt", "track", "track_known_shape")
-LOSS_KEYS = ("total", "sdf", "freespace", "space", "eikonal", "material", "points")
+LOSS_KEYS = ("total", *TERMS, "points")
 
 
-def resolve_pose_source(pose: str) -> str:
-    """Check `mapping.pose`: `gt`, `track` or `track_known_shape` (mapping/pose_source.py)."""
-    if pose not in POSE_SOURCES:
-        raise ConfigError(f"mapping.pose={pose!r} is unknown; use one of {POSE_SOURCES}")
-    return pose
+@dataclass
+class MapperConfig:
+    """`mapping.mapper`: OnlineMapper's settings (the command line's defaults)."""
+
+    num_classes: int = len(DEFAULT_MATERIALS)  # conf: ${len:${materials}}; must match the field
+    steps_per_frame: int = 5
+    warmup_steps: int = 50  # steps on the first frame with data
+    camera_points_per_frame: int = 4096  # stored per camera keyframe
+    tactile_points_per_touch: int = 128  # stored per touch (with replacement for small patches)
+    camera_rays: int = 288  # per step, from the keyframe window
+    tactile_rays: int = 96  # per step, from all touches
+    band_samples: int = 5  # per ray, inside the truncation band
+    free_samples: int = 4  # per ray, in free space
+    material_points: int = 256  # per step, from all labelled touches
+    truncation: float = 0.005  # metres
+    camera_free_range: float = 0.05  # metres in front of the surface
+    tactile_free_range: float = 0.01
+    camera_weight: float = 1.0
+    tactile_weight: float = 1.0
+    sdf_weight: float = 1.0
+    freespace_weight: float = 1.0
+    eikonal_weight: float = 0.0
+    eikonal_points: int = 256
+    # Space-carving prior (mapping/space_prior.py): points per step in the cube, outside
+    # where camera rays passed or outside the hull of observed points, solid elsewhere.
+    space_prior_points: int = 512  # 0 = off
+    space_prior_weight: float = 0.5
+    space_prior_resolution: int = 64  # carving voxels per side
+    material_weight: float = 0.1
+    # A labelled touch contradicted by its neighbours (>= min_neighbours labelled touches
+    # within radius metres, fewer than min_agreement of them with its label) is not used
+    # for the material loss, nor one backed by fewer than min_support touches with its label
+    # within support_radius (null: radius). Touches are counted as presses: a finger's
+    # touches at most press_gap frames apart are one (0: every frame). radius 0 = off.
+    label_vote_radius: float = 0.02
+    label_vote_min_neighbours: int = 3
+    label_vote_min_agreement: float = 0.25
+    label_vote_min_support: int = 1
+    label_vote_press_gap: int = 2
+    label_vote_support_radius: float | None = 0.04
+    window_recent: int = 4  # keyframes: the most recent ones in every window
+    window_by_loss: int = 4  # plus older ones drawn by their last loss
+    max_keyframes: int = 200
+    use_camera_mask: bool = True  # camera points only inside the object's mask
+    seed: int = 0  # conf: ${seed}
+    tactile_depth: TactileDepthConfig = field(default_factory=TactileDepthConfig)
+
+    def __post_init__(self) -> None:
+        self._check_counts()
+        self._check_lengths_and_weights()
+        if self.label_vote_support_radius is not None and self.label_vote_support_radius < 0:
+            raise ValueError(
+                f"mapping.mapper.label_vote_support_radius={self.label_vote_support_radius} "
+                "must be >= 0 (or null: the vote radius)"
+            )
+        if not 0.0 < self.label_vote_min_agreement <= 1.0:
+            raise ValueError(
+                f"mapping.mapper.label_vote_min_agreement={self.label_vote_min_agreement} must be in (0, 1]"
+            )
+        if self.max_keyframes <= self.window_recent:
+            raise ValueError(
+                f"mapping.mapper.max_keyframes={self.max_keyframes} must exceed window_recent ({self.window_recent})"
+            )
+
+    def _check_counts(self) -> None:
+        at_least = {
+            "num_classes": 2, "steps_per_frame": 1, "warmup_steps": 0,
+            "camera_points_per_frame": 1, "tactile_points_per_touch": 1,
+            "camera_rays": 0, "tactile_rays": 0, "band_samples": 0, "free_samples": 0,
+            "material_points": 0, "eikonal_points": 0, "space_prior_points": 0,
+            "space_prior_resolution": 8, "window_recent": 1, "window_by_loss": 0,
+            "max_keyframes": 1, "label_vote_min_neighbours": 1, "label_vote_min_support": 0,
+            "label_vote_press_gap": 0,
+        }  # fmt: skip
+        for name, low in at_least.items():
+            if getattr(self, name) < low:
+                raise ValueError(f"mapping.mapper.{name}={getattr(self, name)} must be >= {low}")
+        if self.camera_rays + self.tactile_rays == 0:
+            raise ValueError(
+                "mapping.mapper.camera_rays and tactile_rays are both 0; at least one must be >= 1"
+            )
+
+    def _check_lengths_and_weights(self) -> None:
+        if self.truncation <= 0:
+            raise ValueError(f"mapping.mapper.truncation={self.truncation} must be > 0")
+        for name in ("camera_free_range", "tactile_free_range"):
+            if getattr(self, name) < self.truncation:
+                raise ValueError(
+                    f"mapping.mapper.{name}={getattr(self, name)} must be >= truncation ({self.truncation})"
+                )
+        non_negative = (
+            "camera_weight", "tactile_weight", "sdf_weight", "freespace_weight",
+            "eikonal_weight", "space_prior_weight", "material_weight", "label_vote_radius",
+        )  # fmt: skip
+        for name in non_negative:
+            if getattr(self, name) < 0:
+                raise ValueError(f"mapping.mapper.{name}={getattr(self, name)} must be >= 0")
 
 
 class OnlineMapper:
-    """Trains `field` online from Frames; see the module docstring for one frame's work."""
+    """Trains `field` online from Frames; see the module docstring for one frame's work.
+
+    Pose sources (pose_source.py) use only `frame_points`, `sdf` and `has_surface`.
+    """
 
     def __init__(
         self,
+        config: MapperConfig,
         field: nn.Module,
         optimizer_factory: Callable[..., torch.optim.Optimizer],
-        num_classes: int,
-        steps_per_frame: int = 5,
-        warmup_steps: int = 50,
-        camera_points_per_frame: int = 4096,
-        tactile_points_per_touch: int = 128,
-        camera_rays: int = 288,
-        tactile_rays: int = 96,
-        band_samples: int = 5,
-        free_samples: int = 4,
-        material_points: int = 256,
-        truncation: float = 0.005,
-        camera_free_range: float = 0.05,
-        tactile_free_range: float = 0.01,
-        camera_weight: float = 1.0,
-        tactile_weight: float = 1.0,
-        sdf_weight: float = 1.0,
-        freespace_weight: float = 1.0,
-        eikonal_weight: float = 0.0,
-        eikonal_points: int = 256,
-        space_prior_points: int = 0,
-        space_prior_weight: float = 0.5,
-        space_prior_resolution: int = 64,
-        material_weight: float = 0.01,
-        label_vote_radius: float = 0.0,
-        label_vote_min_neighbours: int = 3,
-        label_vote_min_agreement: float = 0.25,
-        label_vote_min_support: int = 0,
-        label_vote_press_gap: int = 0,
-        label_vote_support_radius: float | None = None,
-        window_recent: int = 4,
-        window_by_loss: int = 4,
-        max_keyframes: int = 200,
-        tactile_depth: TactileDepth | None = None,
-        use_camera_mask: bool = True,
-        seed: int = 0,
-        device: str | torch.device = "cpu",
+        device: str | torch.device,
     ) -> None:
-        if num_classes < 2:
-            raise ValueError(f"num_classes={num_classes} must be >= 2")
-        positive = {
-            "camera_points_per_frame": camera_points_per_frame,
-            "tactile_points_per_touch": tactile_points_per_touch,
-            "truncation": truncation,
-        }
-        for name, value in positive.items():
-            if value <= 0:
-                raise ValueError(f"{name}={value} must be > 0")
-        counts = {
-            "steps_per_frame": steps_per_frame,
-            "warmup_steps": warmup_steps,
-            "camera_rays": camera_rays,
-            "tactile_rays": tactile_rays,
-            "band_samples": band_samples,
-            "free_samples": free_samples,
-            "material_points": material_points,
-            "eikonal_points": eikonal_points,
-            "space_prior_points": space_prior_points,
-        }
-        for name, value in counts.items():
-            if value < 0:
-                raise ValueError(f"{name}={value} must be >= 0")
+        if getattr(field, "num_classes", config.num_classes) != config.num_classes:
+            raise ConfigError(
+                f"the field has {field.num_classes} classes, mapping.mapper.num_classes="
+                f"{config.num_classes}; both follow `materials` unless overridden"
+            )
+        self.config = config
+        self.num_classes = config.num_classes
         self.device = torch.device(device)
         self.field = field.to(self.device)
         self.optimizer = optimizer_factory(self.field.parameters())
-        self.num_classes = num_classes
-        self.steps_per_frame = steps_per_frame
-        self.warmup_steps = warmup_steps
-        self.camera_points_per_frame = camera_points_per_frame
-        self.tactile_points_per_touch = tactile_points_per_touch
-        self.camera_rays = camera_rays
-        self.tactile_rays = tactile_rays
-        self.band_samples = band_samples
-        self.free_samples = free_samples
-        self.material_points = material_points
-        self.truncation = float(truncation)
-        self.camera_free_range = max(float(camera_free_range), self.truncation)
-        self.tactile_free_range = max(float(tactile_free_range), self.truncation)
-        self.camera_weight = camera_weight
-        self.tactile_weight = tactile_weight
-        self.sdf_weight = sdf_weight
-        self.freespace_weight = freespace_weight
-        self.eikonal_weight = eikonal_weight
-        self.eikonal_points = eikonal_points
-        self.space_prior_points = space_prior_points
-        self.space_prior_weight = space_prior_weight
-        self.space_prior = (
-            SpaceCarvingPrior(
-                float(field.bound),
-                field.center.detach().cpu().numpy(),
-                resolution=space_prior_resolution,
-                seed=seed,
-            )
-            if space_prior_points > 0
-            else None
-        )
-        self.material_weight = material_weight
-        self.tactile_depth = tactile_depth or TactileDepth("gt")
-        self.use_camera_mask = use_camera_mask
-        self.keyframes = KeyframeBuffer(max_keyframes, window_recent, window_by_loss)
-        if (
-            label_vote_radius < 0
-            or label_vote_min_neighbours < 1
-            or min(label_vote_min_support, label_vote_press_gap) < 0
-        ):
-            raise ValueError(
-                f"label_vote_radius={label_vote_radius} must be >= 0, "
-                f"label_vote_min_neighbours={label_vote_min_neighbours} >= 1, "
-                f"label_vote_min_support={label_vote_min_support} and "
-                f"label_vote_press_gap={label_vote_press_gap} >= 0"
-            )
-        if label_vote_support_radius is not None and label_vote_support_radius < 0:
-            raise ValueError(
-                f"label_vote_support_radius={label_vote_support_radius} must be >= 0 (or None)"
-            )
-        if not 0.0 < label_vote_min_agreement <= 1.0:
-            raise ValueError(
-                f"label_vote_min_agreement={label_vote_min_agreement} must be in (0, 1]"
-            )
-        self.touches = TouchBuffer(
-            self.device,
-            label_vote_radius,
-            label_vote_min_neighbours,
-            label_vote_min_agreement,
-            label_vote_min_support,
-            label_vote_press_gap,
-            label_vote_support_radius,
-        )
         # The mapper's own generator: sampling is repeatable and resumable bit for bit.
-        self.generator = torch.Generator().manual_seed(int(seed))
-        self.frames_seen = 0
-        self.steps = 0
-        self.warmed_up = False
-        self.camera_points_total = 0
-        self.tactile_points_total = 0
+        self.generator = torch.Generator().manual_seed(int(config.seed))
+        self.points = PointExtractor(config.use_camera_mask, TactileDepth(config.tactile_depth))
+        self.memory = MapMemory(
+            config, field.bound, field.center.detach().cpu().numpy(), self.generator, self.device
+        )
+        self.sampler = BatchSampler(config, self.memory, self.generator, self.device)
+        self.objective = MapperObjective(config, self.generator)
+        self.log = TrainingLog()
 
-    # ------------------------------------------------------------------ ingestion
+    # ------------------------------------------------------------ for pose sources
     def frame_points(self, frame: Frame, world_T_object: np.ndarray) -> dict[str, np.ndarray]:
         """Object-frame surface points per source: `camera` and each finger in contact."""
-        return self._frame_points(frame, world_T_object, every_pixel=False)[0]
+        return self.points(frame, world_T_object)
 
-    def _frame_points(
-        self, frame: Frame, world_T_object: np.ndarray, every_pixel: bool
-    ) -> tuple[dict[str, np.ndarray], np.ndarray | None]:
-        """frame_points and, with `every_pixel`, the points of all valid camera pixels.
+    def sdf(self, x: torch.Tensor) -> torch.Tensor:
+        """The field's signed distance (metres) at object-frame points x (N, 3)."""
+        return self.field.sdf(x)
 
-        The space prior carves along every pixel's ray, mask or not: for it the camera is
-        back-projected once, without its mask, and the surface points are the pixels inside
-        the mask (the same points, in the same order, as camera_points(..., use_mask=True)).
-        """
-        out: dict[str, np.ndarray] = {}
-        every = None
-        reading = frame.camera
-        if reading is not None and every_pixel:
-            every = camera_points(reading, world_T_object, use_mask=False)
-            out["camera"] = every
-            if self.use_camera_mask and reading.mask is not None:
-                if reading.mask.shape != reading.depth.shape:
-                    raise ValueError(
-                        f"mask shape {reading.mask.shape} does not match depth shape "
-                        f"{reading.depth.shape}"
-                    )
-                # backproject keeps the finite, positive depths in row-major pixel order.
-                valid = np.isfinite(reading.depth) & (reading.depth > 0)
-                out["camera"] = every[reading.mask.astype(bool)[valid]]
-        elif reading is not None:
-            out["camera"] = camera_points(reading, world_T_object, self.use_camera_mask)
-        for finger, reading in frame.tactile.items():
-            pts = tactile_points(reading, self.tactile_depth(reading), world_T_object)
-            if len(pts):
-                out[finger] = pts
-        return out, every
+    @property
+    def has_surface(self) -> bool:
+        """Whether the field has trained on data yet (its warm-up steps ran)."""
+        return self.log.warmed_up
 
-    def _tensor(self, array: np.ndarray) -> torch.Tensor:
-        return torch.as_tensor(np.asarray(array, dtype=np.float32), device=self.device)
-
+    # ------------------------------------------------------------------ ingestion
     def add_frame(
         self,
         frame: Frame,
@@ -251,71 +197,28 @@ class OnlineMapper:
                 f"the object pose for frame {frame.index} is not finite (NaN/inf); "
                 "the pose source diverged: try mapping.pose=gt"
             )
-        touch_labels = touch_labels or {}
-        points, every_pixel = self._frame_points(frame, pose, self.space_prior is not None)
-        for source, pts in points.items():
-            if source == "camera":
-                keep = subsample(
-                    len(pts), self.camera_points_per_frame, self.generator, replace_if_short=False
-                )
-                origin, _ = sensor_origin_and_axis(frame.camera.world_T_camera, pose)
-                self.keyframes.add(
-                    self._tensor(pts[keep.numpy()]), self._tensor(origin), frame.index
-                )
-                if self.space_prior is not None:
-                    # Every pixel's ray, hand and background included, crosses free space.
-                    self.space_prior.carve(origin, every_pixel, self.truncation)
-                    self.space_prior.add_surface(pts[keep.numpy()])
-                self.camera_points_total += len(keep)
-            else:
-                keep = subsample(
-                    len(pts), self.tactile_points_per_touch, self.generator, replace_if_short=True
-                )
-                _, axis = sensor_origin_and_axis(frame.tactile[source].world_T_sensor, pose)
-                if self.space_prior is not None:
-                    self.space_prior.add_surface(pts[keep.numpy()])
-                label = touch_labels.get(source)
-                usable = label is not None and label.usable
-                self.touches.add(
-                    self._tensor(pts[keep.numpy()]),
-                    self._tensor(axis),
-                    label.label if usable else -1,
-                    label.confidence if usable else 0.0,
-                    finger=source,
-                    frame_index=frame.index,
-                )
-                self.tactile_points_total += len(keep)
-        self.frames_seen += 1
-        if self.space_prior is not None:
-            self.space_prior.update_hull()
-        if not self.has_data:
+        every_pixel = self.memory.space_prior is not None
+        points, pixels = self.points.extract(frame, pose, every_pixel)
+        camera, tactile = self.memory.add(frame, points, pixels, pose, touch_labels or {})
+        self.log.camera_points_total += camera
+        self.log.tactile_points_total += tactile
+        self.log.frames_seen += 1
+        if not self.memory.has_data:
             return dict.fromkeys(LOSS_KEYS, 0.0)
-        steps = self.steps_per_frame
-        if not self.warmed_up:
-            steps, self.warmed_up = max(steps, self.warmup_steps), True
+        steps = self.config.steps_per_frame
+        if not self.log.warmed_up:
+            steps, self.log.warmed_up = max(steps, self.config.warmup_steps), True
         return self.optimize(steps)
-
-    @property
-    def has_data(self) -> bool:
-        return len(self.keyframes) > 0 or self.touches.num_touches > 0
 
     @property
     def trained_on(self) -> dict:
         """What the field actually learned from (docs/design.md: metrics.json `trained_on`)."""
-        return {
-            "frames": self.frames_seen,
-            "camera_points": self.camera_points_total,
-            "tactile_points": self.tactile_points_total,
-            "touches": self.touches.num_touches,
-            "labelled_touches": self.touches.num_labelled,
-            "outvoted_touches": self.touches.num_outvoted,
-            "optimizer_steps": self.steps,
-        }
+        return self.log.trained_on(self.memory.touches)
 
     # ------------------------------------------------------------------ optimisation
     def optimize(self, steps: int) -> dict[str, float]:
         """Run `steps` optimiser steps on the stored data; mean of each loss over them."""
-        if not self.has_data:
+        if not self.memory.has_data:
             raise NoDataError(
                 "the mapper has no camera or tactile points yet; feed frames with data first"
             )
@@ -325,179 +228,45 @@ class OnlineMapper:
                 totals[key] += value
         return {k: v / max(steps, 1) for k, v in totals.items()}
 
-    def _camera_rays(self) -> tuple[RaySamples, torch.Tensor, list[int]] | None:
-        if len(self.keyframes) == 0 or self.camera_rays == 0:
-            return None
-        window = self.keyframes.window(self.generator)
-        counts = torch.tensor([self.keyframes.points[i].shape[0] for i in window])
-        which = torch.randint(len(window), (self.camera_rays,), generator=self.generator)
-        within = (torch.rand(self.camera_rays, generator=self.generator) * counts[which]).long()
-        offsets = torch.cumsum(counts, 0) - counts
-        idx = (offsets[which] + within).to(self.device)
-        points = torch.cat([self.keyframes.points[i] for i in window])[idx]
-        origins = torch.stack([self.keyframes.origins[i] for i in window])[which.to(self.device)]
-        ray = points - origins
-        length = ray.norm(dim=1)
-        samples = sample_along_rays(
-            points, ray / length.clamp_min(1e-9).unsqueeze(1), length, self.band_samples,
-            self.free_samples, self.truncation, self.camera_free_range, self.generator,
-        )  # fmt: skip
-        return samples, which.to(self.device), window
-
-    def _tactile_rays(self) -> RaySamples | None:
-        touch = self.touches.tensors()
-        idx = random_indices(len(touch["points"]), self.tactile_rays, self.generator, self.device)
-        if len(idx) == 0:
-            return None
-        length = torch.full((len(idx),), self.tactile_free_range, device=self.device)
-        return sample_along_rays(
-            touch["points"][idx], touch["axes"][idx], length, self.band_samples, self.free_samples,
-            self.truncation, self.tactile_free_range, self.generator,
-        )  # fmt: skip
-
     def step(self) -> dict[str, float]:
         """One optimiser step on a fresh batch; returns its losses."""
-        camera = self._camera_rays()
-        tactile = self._tactile_rays()
-        parts = [(camera[0], self.camera_weight)] if camera else []
-        parts += [(tactile, self.tactile_weight)] if tactile else []
-        touch = self.touches.tensors()
-        pick = random_indices(
-            len(touch["labelled_points"]), self.material_points, self.generator, self.device
-        )
-        x_mat = touch["labelled_points"][pick]
-        # Space-prior points (cube samples with a target sign), none until the hull exists.
-        x_space, sign_space = x_mat[:0], x_mat[:0, 0]
-        if self.space_prior is not None and self.space_prior.ready:
-            x_space, sign_space = self.space_prior.sample(
-                self.space_prior_points, self.truncation, self.generator, self.device
-            )
-        x = torch.cat([p.x for p, _ in parts] + [x_space, x_mat])
-        n_geo = len(x) - len(x_space) - len(x_mat)
+        batch = self.sampler.sample()
         # One pass for geometry and material points: the hash grid dominates the cost.
-        out = self.field(x)
-        zero = torch.zeros((), device=self.device)
-        losses = dict.fromkeys(("sdf", "freespace", "space", "eikonal", "material"), zero)
-        if parts:
-            sdf = out["sdf"][:n_geo]
-            s = torch.cat([p.s for p, _ in parts])
-            free = torch.cat([p.free for p, _ in parts])
-            weight = torch.cat(
-                [torch.full((len(p),), float(w), device=self.device) for p, w in parts]
-            )
-            bound = batch_bound(x[:n_geo], s, torch.cat([p.surface for p, _ in parts]))
-            per_sample = (
-                torch.where(free, freespace_loss(sdf, bound), truncated_sdf_loss(sdf, s, bound))
-                * weight
-            )
-            losses["sdf"] = per_sample[~free].sum() / max(int((~free).sum()), 1)
-            losses["freespace"] = per_sample[free].sum() / max(int(free.sum()), 1)
-            if self.eikonal_weight > 0 and self.eikonal_points > 0:
-                idx = random_indices(n_geo, self.eikonal_points, self.generator, self.device)
-                xe = x[idx].detach().requires_grad_(True)
-                (grad,) = torch.autograd.grad(self.field.sdf(xe).sum(), xe, create_graph=True)
-                losses["eikonal"] = eikonal_loss(grad).mean()
-            if camera:
-                self._update_keyframe_losses(camera, per_sample[: len(camera[0])].detach())
-        if len(x_space):
-            sdf_space = out["sdf"][n_geo : n_geo + len(x_space)]
-            losses["space"] = space_prior_loss(sdf_space, sign_space).mean()
-        if len(x_mat):
-            logits = out["material_logits"][n_geo + len(x_space) :]
-            labels, weights = touch["labelled_labels"][pick], touch["labelled_weights"][pick]
-            losses["material"] = material_loss(logits, labels, weights).mean()
-        total = (
-            self.sdf_weight * losses["sdf"]
-            + self.freespace_weight * losses["freespace"]
-            + self.space_prior_weight * losses["space"]
-            + self.eikonal_weight * losses["eikonal"]
-            + self.material_weight * losses["material"]
-        )
+        out = self.field(batch.x)
+        losses, per_sample = self.objective.losses(self.field, batch, out)
+        if batch.camera is not None:
+            camera_loss = per_sample[: len(batch.camera.samples)].detach()
+            self.memory.keyframes.update_losses(*per_keyframe_losses(batch.camera, camera_loss))
+        total = self.objective.total(losses)
         if not torch.isfinite(total):
             bad = [k for k, v in losses.items() if not torch.isfinite(v)]
             raise NumericalError(
-                f"mapper loss is not finite at step {self.steps} ({', '.join(bad) or 'total'}); "
+                f"mapper loss is not finite at step {self.log.steps} ({', '.join(bad) or 'total'}); "
                 "lower mapping.optimizer.lr or check the input depth and poses"
             )
         self.optimizer.zero_grad(set_to_none=True)
         total.backward()
         self.optimizer.step()
-        self.steps += 1
-        n_points = len(x) + (self.eikonal_points if self.eikonal_weight > 0 and parts else 0)
+        self.log.steps += 1
+        eikonal = self.objective.eikonal_points if self.objective.uses_eikonal(batch) else 0
         result = {k: float(v.detach()) for k, v in losses.items()}
-        result.update(total=float(total.detach()), points=float(n_points))
+        result.update(total=float(total.detach()), points=float(len(batch.x) + eikonal))
         return result
-
-    def _update_keyframe_losses(
-        self, camera: tuple[RaySamples, torch.Tensor, list[int]], loss: torch.Tensor
-    ) -> None:
-        samples, which, window = camera
-        per_kf = torch.zeros(len(window), device=self.device).index_add_(
-            0, which[samples.ray], loss
-        )
-        hits = torch.zeros(len(window), device=self.device).index_add_(
-            0, which[samples.ray], torch.ones_like(loss)
-        )
-        mean = (per_kf / hits.clamp_min(1)).tolist()
-        used = hits.tolist()
-        self.keyframes.update_losses(
-            [w for w, h in zip(window, used) if h > 0], [m for m, h in zip(mean, used) if h > 0]
-        )
 
     # ------------------------------------------------------------------ state
     def state_dict(self) -> dict:
         """Everything needed to continue bit for bit (loads with torch.load(weights_only=True))."""
-        np_state = np.random.get_state()
         return {
             "field": self.field.state_dict(),
             "optimizer": self.optimizer.state_dict(),
-            "keyframes": self.keyframes.state_dict(),
-            "touches": self.touches.state_dict(),
-            "space_prior": self.space_prior.state_dict() if self.space_prior is not None else {},
-            "counters": {
-                "frames_seen": self.frames_seen,
-                "steps": self.steps,
-                "warmed_up": self.warmed_up,
-                "camera_points_total": self.camera_points_total,
-                "tactile_points_total": self.tactile_points_total,
-            },
-            "rng": {
-                "mapper": self.generator.get_state(),
-                "torch": torch.get_rng_state(),
-                "python": random.getstate(),
-                "numpy": {
-                    "keys": torch.from_numpy(np_state[1].astype(np.int64)),
-                    "pos": int(np_state[2]),
-                    "has_gauss": int(np_state[3]),
-                    "cached_gaussian": float(np_state[4]),
-                },
-            },
+            **self.memory.state_dict(),
+            "counters": self.log.state_dict(),
+            "rng": capture_rng(self.generator),
         }
 
     def load_state_dict(self, state: dict) -> None:
         self.field.load_state_dict(state["field"])
         self.optimizer.load_state_dict(state["optimizer"])
-        self.keyframes.load_state_dict(state["keyframes"], self.device)
-        self.touches.load_state_dict(state["touches"])
-        if self.space_prior is not None and state.get("space_prior"):
-            self.space_prior.load_state_dict(state["space_prior"])
-        counters = state["counters"]
-        self.frames_seen = int(counters["frames_seen"])
-        self.steps = int(counters["steps"])
-        self.warmed_up = bool(counters["warmed_up"])
-        self.camera_points_total = int(counters["camera_points_total"])
-        self.tactile_points_total = int(counters["tactile_points_total"])
-        rng = state["rng"]
-        self.generator.set_state(rng["mapper"])
-        torch.set_rng_state(rng["torch"])
-        random.setstate(rng["python"])
-        npr = rng["numpy"]
-        np.random.set_state(
-            (
-                "MT19937",
-                npr["keys"].numpy().astype(np.uint32),
-                npr["pos"],
-                npr["has_gauss"],
-                npr["cached_gaussian"],
-            )
-        )
+        self.memory.load_state_dict(state)
+        self.log.load_state_dict(state["counters"])
+        restore_rng(state["rng"], self.generator)

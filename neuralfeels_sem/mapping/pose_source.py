@@ -13,18 +13,42 @@ from __future__ import annotations
 import logging
 import time
 from pathlib import Path
+from typing import Literal, Protocol, get_args
 
 import numpy as np
 import torch
 
 from neuralfeels_sem.errors import ConfigError
-from neuralfeels_sem.mapping.pose_tracker import PoseTracker, constant_velocity
+from neuralfeels_sem.mapping.pose_tracker import PoseTracker, TrackerConfig, constant_velocity
 from neuralfeels_sem.sensors.frame import Frame
 from neuralfeels_sem.utils.geometry import check_pose, invert_pose, orthonormalize_pose
 
 log = logging.getLogger(__name__)
 
+PoseMode = Literal["gt", "track", "track_known_shape"]  # mapping.pose
+POSE_SOURCES = get_args(PoseMode)
 TRACKED = ("track", "track_known_shape")
+
+
+def resolve_pose_source(pose: str) -> str:
+    """Check `mapping.pose`: one of POSE_SOURCES."""
+    if pose not in POSE_SOURCES:
+        raise ConfigError(f"mapping.pose={pose!r} is unknown; use one of {POSE_SOURCES}")
+    return pose
+
+
+class MapView(Protocol):
+    """What a pose source may read from the mapper (OnlineMapper provides it)."""
+
+    def frame_points(self, frame: Frame, world_T_object: np.ndarray) -> dict[str, np.ndarray]:
+        """The frame's surface points per source, mapped by `world_T_object`'s inverse."""
+
+    def sdf(self, x: torch.Tensor) -> torch.Tensor:
+        """The learned signed distance (metres) at object-frame points (N, 3)."""
+
+    @property
+    def has_surface(self) -> bool:
+        """Whether the field has been trained on any data yet."""
 
 
 class PoseSource:
@@ -32,7 +56,7 @@ class PoseSource:
 
     name = "gt"
 
-    def estimate(self, frame: Frame, mapper) -> np.ndarray:
+    def estimate(self, frame: Frame, mapper: MapView | None) -> np.ndarray:
         """world_T_object to map this frame with."""
         self.last_estimate = frame.world_T_object
         self.last_frame = frame
@@ -102,7 +126,9 @@ class TrackedPose(PoseSource):
         self.name = mode
         self.obj = obj
         self.tracker = tracker or PoseTracker(
-            rotation_scale=obj.bounds_radius if obj is not None else 0.05, seed=seed
+            TrackerConfig(rotation_scale=obj.bounds_radius, seed=seed)
+            if obj is not None
+            else TrackerConfig(seed=seed)
         )
         self.error_samples = error_samples
         self.known_shape_resolution = known_shape_resolution
@@ -116,9 +142,9 @@ class TrackedPose(PoseSource):
         self.track_seconds = 0.0  # wall time spent tracking (SDF evaluations dominate)
 
     # ---------------------------------------------------------------- tracking
-    def _sdf_fn(self, mapper):
+    def _sdf_fn(self, mapper: MapView):
         if self.name == "track":
-            return mapper.field.sdf
+            return mapper.sdf
         if self._known_sdf is None:
             from neuralfeels_sem.mapping.known_shape import GridSdf
 
@@ -128,12 +154,12 @@ class TrackedPose(PoseSource):
     def _keep(self, reason: str) -> None:
         self.kept[reason] = self.kept.get(reason, 0) + 1
 
-    def estimate(self, frame: Frame, mapper) -> np.ndarray:
+    def estimate(self, frame: Frame, mapper: MapView) -> np.ndarray:
         if not self.history:
             pose = np.asarray(frame.world_T_object, dtype=np.float64).copy()
         else:
             predicted = constant_velocity(self.history)
-            if self.name == "track" and not getattr(mapper, "warmed_up", True):
+            if self.name == "track" and not mapper.has_surface:
                 pose = predicted
                 self._keep("no surface learned yet")
             else:
@@ -223,10 +249,9 @@ class TrackedPose(PoseSource):
             self.last_estimate = self.history[-1]
 
 
-def build_pose_source(pose: str, obj=None, tracker: PoseTracker | None = None) -> PoseSource:
-    """The pose source named by `mapping.pose`."""
-    from neuralfeels_sem.mapping.mapper import resolve_pose_source
-
+def build_pose_source(pose: str, obj=None, tracker: TrackerConfig | None = None) -> PoseSource:
+    """The pose source named by `mapping.pose`; a PoseTracker (from `tracker`, else one
+    scaled to the object) is built only for the modes that track."""
     resolve_pose_source(pose)
     if pose == "gt":
         return PoseSource()
@@ -234,4 +259,4 @@ def build_pose_source(pose: str, obj=None, tracker: PoseTracker | None = None) -
         raise ConfigError(
             "mapping.pose=track_known_shape needs a ground-truth object mesh; use mapping.pose=track"
         )
-    return TrackedPose(pose, obj, tracker)
+    return TrackedPose(pose, obj, PoseTracker(tracker) if tracker is not None else None)

@@ -13,6 +13,8 @@ from __future__ import annotations
 
 import logging
 from collections.abc import Callable, Mapping
+from dataclasses import dataclass, field
+from typing import Literal, get_args
 
 import numpy as np
 import torch
@@ -22,7 +24,68 @@ from neuralfeels_sem.utils.geometry import check_pose, invert_pose, orthonormali
 
 log = logging.getLogger(__name__)
 
-ROBUST_LOSSES = ("huber", "cauchy")
+RobustLoss = Literal["huber", "cauchy"]
+ROBUST_LOSSES = get_args(RobustLoss)
+
+
+@dataclass
+class TrackerConfig:
+    """`mapping.tracker`: PoseTracker's settings (used when mapping.pose=track*).
+
+    max_step_m, max_step_rad: the largest translation / rotation one LM step may make;
+        a larger step is treated like a failed one (more damping). Far from the surface
+        the field's SDF is clamped and flat, and an undamped step once threw the pose
+        10^27 m away.
+    max_motion_m: a result further than this from the starting (or predicted) pose is
+        rejected as diverged and the prediction kept.
+    prior_weight: weight of the squared distance to the predicted pose, relative to the
+        mean squared SDF residual (translation in metres, rotation times rotation_scale).
+    source_weights: per-point weight by source ("camera", or a finger name; "tactile"
+        applies to every finger); 0 drops that modality from tracking.
+    """
+
+    iterations: int = 15  # Levenberg-Marquardt iterations per frame
+    # A RobustLoss; typed `str` because OmegaConf 2.3 rejects Literal annotations.
+    robust_loss: str = "cauchy"
+    robust_scale: float = 0.001  # metres where the robust loss stops being quadratic
+    min_points: int = 50  # fewer points: keep the predicted pose (>= 6 pose unknowns)
+    damping: float = 1.0e-3  # initial LM damping
+    prior_weight: float = 0.01  # pull toward the constant-velocity prediction
+    rotation_scale: float = 0.05  # metres per radian in the prior (about the object radius)
+    max_step_m: float = 0.01
+    max_step_rad: float = 0.2
+    max_motion_m: float = 0.03
+    max_points_per_source: int = 1000  # camera, and each finger
+    source_weights: dict[str, float] = field(
+        default_factory=lambda: {"camera": 1.0, "tactile": 1.0}
+    )
+    tolerance: float = 1.0e-7  # stop when a step changes the pose less than this
+    seed: int = 0
+
+    def __post_init__(self) -> None:
+        if self.iterations < 1:
+            raise ValueError(f"mapping.tracker.iterations={self.iterations} must be >= 1")
+        if self.robust_loss not in ROBUST_LOSSES:
+            raise ValueError(
+                f"mapping.tracker.robust_loss={self.robust_loss!r} must be one of {ROBUST_LOSSES}"
+            )
+        for name in ("robust_scale", "damping", "rotation_scale", "tolerance"):
+            if getattr(self, name) <= 0:
+                raise ValueError(f"mapping.tracker.{name}={getattr(self, name)} must be > 0")
+        for name in ("max_step_m", "max_step_rad", "max_motion_m"):
+            if getattr(self, name) <= 0:
+                raise ValueError(f"mapping.tracker.{name}={getattr(self, name)} must be > 0")
+        if self.prior_weight < 0:
+            raise ValueError(f"mapping.tracker.prior_weight={self.prior_weight} must be >= 0")
+        if self.min_points < 6 or self.max_points_per_source < 1:
+            raise ValueError(
+                f"mapping.tracker needs min_points >= 6 ({self.min_points}; six pose unknowns) "
+                f"and max_points_per_source >= 1 ({self.max_points_per_source})"
+            )
+        if any(w < 0 for w in self.source_weights.values()):
+            raise ValueError(
+                f"mapping.tracker.source_weights={dict(self.source_weights)} must be >= 0"
+            )
 
 
 def _skew(w: np.ndarray) -> np.ndarray:
@@ -100,77 +163,22 @@ def robust_weights(r: Tensor, loss: str, scale: float) -> tuple[Tensor, Tensor]:
 class PoseTracker:
     """Levenberg-Marquardt alignment of world points to an object-frame SDF."""
 
-    def __init__(
-        self,
-        iterations: int = 15,
-        robust_loss: str = "cauchy",
-        robust_scale: float = 0.001,
-        min_points: int = 50,
-        damping: float = 1e-3,
-        prior_weight: float = 0.01,
-        rotation_scale: float = 0.05,
-        max_points_per_source: int = 1000,
-        source_weights: Mapping[str, float] | None = None,
-        tolerance: float = 1e-7,
-        max_step_m: float = 0.01,
-        max_step_rad: float = 0.2,
-        max_motion_m: float = 0.03,
-        seed: int = 0,
-    ) -> None:
-        """
-        max_step_m, max_step_rad: the largest translation / rotation one LM step may make;
-            a larger step is treated like a failed one (more damping). Far from the surface
-            the field's SDF is clamped and flat, and an undamped step once threw the pose
-            10^27 m away.
-        max_motion_m: a result further than this from the starting (or predicted) pose is
-            rejected as diverged and the prediction kept.
-        robust_scale: metres where the robust loss stops being quadratic.
-        prior_weight: weight of the squared distance to the predicted pose, relative to the
-            mean squared SDF residual (translation in metres, rotation times rotation_scale).
-        rotation_scale: metres per radian in the prior (about the object's radius: the
-            surface displacement a rotation causes).
-        source_weights: per-point weight by source ("camera", or a finger name; "tactile"
-            applies to every finger); 0 drops that modality from tracking.
-        """
-        if iterations < 1:
-            raise ValueError(f"iterations={iterations} must be >= 1")
-        if robust_loss not in ROBUST_LOSSES:
-            raise ValueError(f"robust_loss={robust_loss!r} must be one of {ROBUST_LOSSES}")
-        for name, value in {
-            "robust_scale": robust_scale,
-            "damping": damping,
-            "rotation_scale": rotation_scale,
-            "tolerance": tolerance,
-            "max_step_m": max_step_m,
-            "max_step_rad": max_step_rad,
-            "max_motion_m": max_motion_m,
-        }.items():
-            if value <= 0:
-                raise ValueError(f"{name}={value} must be > 0")
-        if prior_weight < 0:
-            raise ValueError(f"prior_weight={prior_weight} must be >= 0")
-        if min_points < 6 or max_points_per_source < 1:
-            raise ValueError(
-                f"min_points={min_points} must be >= 6 (six pose unknowns) and "
-                f"max_points_per_source={max_points_per_source} >= 1"
-            )
-        weights = dict(source_weights or {})
-        if any(w < 0 for w in weights.values()):
-            raise ValueError(f"source_weights={weights} must be >= 0")
-        self.iterations = iterations
-        self.robust_loss = robust_loss
-        self.robust_scale = float(robust_scale)
-        self.min_points = min_points
-        self.damping = float(damping)
-        self.prior_weight = float(prior_weight)
-        self.rotation_scale = float(rotation_scale)
-        self.max_points_per_source = max_points_per_source
-        self.source_weights = weights
-        self.tolerance = float(tolerance)
-        self.max_step_m = float(max_step_m)
-        self.max_step_rad = float(max_step_rad)
-        self.max_motion_m = float(max_motion_m)
-        self.generator = torch.Generator().manual_seed(int(seed))
+    def __init__(self, config: TrackerConfig | None = None) -> None:
+        config = config or TrackerConfig()  # ranges: TrackerConfig.__post_init__
+        self.iterations = config.iterations
+        self.robust_loss = config.robust_loss
+        self.robust_scale = float(config.robust_scale)
+        self.min_points = config.min_points
+        self.damping = float(config.damping)
+        self.prior_weight = float(config.prior_weight)
+        self.rotation_scale = float(config.rotation_scale)
+        self.max_points_per_source = config.max_points_per_source
+        self.source_weights = dict(config.source_weights)
+        self.tolerance = float(config.tolerance)
+        self.max_step_m = float(config.max_step_m)
+        self.max_step_rad = float(config.max_step_rad)
+        self.max_motion_m = float(config.max_motion_m)
+        self.generator = torch.Generator().manual_seed(int(config.seed))
 
     def source_weight(self, source: str) -> float:
         if source in self.source_weights:

@@ -18,42 +18,57 @@ Sources:
 
 from __future__ import annotations
 
+from dataclasses import dataclass
+from typing import Literal, get_args
+
 import cv2
 import numpy as np
 
-from neuralfeels_sem.errors import ConfigError, DataError
+from neuralfeels_sem.errors import DataError
 from neuralfeels_sem.sensors.frame import TactileReading
 from neuralfeels_sem.sim.digit_geometry import GEL_DISTANCE_M, MAX_PENETRATION_M
 
-SOURCES = ("gt", "image")
+TactileDepthSource = Literal["gt", "image"]
+SOURCES = get_args(TactileDepthSource)
+
+
+@dataclass
+class TactileDepthConfig:
+    """`mapping.mapper.tactile_depth`: where a touch's contact depth comes from."""
+
+    # gt: simulator depth | image: background-difference estimate (real sensors). A
+    # TactileDepthSource; typed `str` because OmegaConf 2.3 rejects Literal annotations.
+    source: str = "gt"
+    contact_threshold: float = 12.0  # grey levels of change that count as contact
+    full_press_intensity: float = 60.0  # grey levels of change at the deepest press
+    blur_px: int = 7
+    min_contact_px: int = 150
+
+    def __post_init__(self) -> None:
+        key = "mapping.mapper.tactile_depth"
+        if self.source not in SOURCES:
+            raise ValueError(f"{key}.source={self.source!r} is unknown; use one of {SOURCES}")
+        if not 0 < self.contact_threshold < self.full_press_intensity:
+            raise ValueError(
+                f"{key} needs 0 < contact_threshold ({self.contact_threshold}) "
+                f"< full_press_intensity ({self.full_press_intensity})"
+            )
+        if self.blur_px < 1 or self.blur_px % 2 == 0:
+            raise ValueError(f"{key}.blur_px={self.blur_px} must be odd and >= 1")
+        if self.min_contact_px < 0:
+            raise ValueError(f"{key}.min_contact_px={self.min_contact_px} must be >= 0")
 
 
 class TactileDepth:
-    """Contact depth from a tactile reading (`source` = gt | image)."""
+    """Contact depth from a tactile reading (`config.source` = gt | image)."""
 
-    def __init__(
-        self,
-        source: str = "gt",
-        contact_threshold: float = 12.0,
-        full_press_intensity: float = 60.0,
-        blur_px: int = 7,
-        min_contact_px: int = 150,
-    ) -> None:
-        if source not in SOURCES:
-            raise ConfigError(f"tactile depth source={source!r} is unknown; use one of {SOURCES}")
-        if contact_threshold <= 0 or full_press_intensity <= contact_threshold:
-            raise ValueError(
-                f"need 0 < contact_threshold ({contact_threshold}) < full_press_intensity ({full_press_intensity})"
-            )
-        if blur_px < 1 or blur_px % 2 == 0:
-            raise ValueError(f"blur_px={blur_px} must be an odd number >= 1")
-        if min_contact_px < 0:
-            raise ValueError(f"min_contact_px={min_contact_px} must be >= 0")
-        self.source = source
-        self.contact_threshold = float(contact_threshold)
-        self.full_press_intensity = float(full_press_intensity)
-        self.blur_px = int(blur_px)
-        self.min_contact_px = int(min_contact_px)
+    def __init__(self, config: TactileDepthConfig | None = None) -> None:
+        config = config or TactileDepthConfig()  # ranges: TactileDepthConfig.__post_init__
+        self.source = config.source
+        self.contact_threshold = float(config.contact_threshold)
+        self.full_press_intensity = float(config.full_press_intensity)
+        self.blur_px = int(config.blur_px)
+        self.min_contact_px = int(config.min_contact_px)
 
     def __call__(self, reading: TactileReading) -> np.ndarray:
         if self.source == "gt":

@@ -23,10 +23,14 @@ from hydra.utils import instantiate
 from omegaconf import DictConfig, OmegaConf
 from tqdm import tqdm
 
+from neuralfeels_sem.configs import to_config
 from neuralfeels_sem.errors import NoDataError
 from neuralfeels_sem.eval.run_scorer import RunScorer
+from neuralfeels_sem.fields.semantic_field import SemanticField, SemanticFieldConfig
 from neuralfeels_sem.mapping.checkpoint import load_checkpoint, save_checkpoint
+from neuralfeels_sem.mapping.mapper import MapperConfig, OnlineMapper
 from neuralfeels_sem.mapping.pose_source import build_pose_source
+from neuralfeels_sem.mapping.pose_tracker import TrackerConfig
 from neuralfeels_sem.sensors.factory import build_sensor
 from neuralfeels_sem.tasks.runner import output_dir
 from neuralfeels_sem.utils.device import resolve_device
@@ -34,8 +38,9 @@ from neuralfeels_sem.viz.run_report import print_summary, write_pictures
 
 log = logging.getLogger(__name__)
 
-# Margin around the object's bounding sphere for the field's domain: the truncation band
-# and free-space samples just outside the surface must stay inside the hash grid.
+# The field's half-extent is BOUND_MARGIN times the object's bounding radius (computed per
+# object, not a setting): the truncation band and free-space samples just outside the
+# surface must stay inside the hash grid.
 BOUND_MARGIN = 1.15
 
 
@@ -55,14 +60,13 @@ def build_scorer(cfg: DictConfig, obj) -> RunScorer:
     )
 
 
-def build_mapper(cfg: DictConfig, bound: float, device):
-    field = instantiate(cfg.model, bound=bound)
-    optimizer_factory = instantiate(cfg.mapping.optimizer)
-    # mapping.mapper is a partial: the field and the run's device are known only here.
-    mapper = instantiate(cfg.mapping.mapper)(
-        field=field, optimizer_factory=optimizer_factory, device=device
+def build_mapper(cfg: DictConfig, bound: float, device) -> OnlineMapper:
+    """The field (cube half-extent `bound`, from the object) and its online mapper."""
+    field = SemanticField(to_config(SemanticFieldConfig, cfg.model), bound)
+    optimizer_factory = instantiate(cfg.mapping.optimizer)  # a partial FieldAdam
+    return OnlineMapper(
+        to_config(MapperConfig, cfg.mapping.mapper), field, optimizer_factory, device
     )
-    return mapper
 
 
 def oracles_used(cfg: DictConfig) -> list[str]:
@@ -116,7 +120,8 @@ def map_object(cfg: DictConfig, obj, sensor, out: Path) -> dict:
     mapper = build_mapper(cfg, bound, device)
     model_cfg = model_config(cfg)  # what a checkpoint must match to resume
     scorer = build_scorer(cfg, obj)
-    tracker = instantiate(cfg.mapping.tracker) if "tracker" in cfg.mapping else None
+    # A PoseTracker is built only when mapping.pose tracks.
+    tracker = to_config(TrackerConfig, cfg.mapping.tracker)
     pose_source = build_pose_source(cfg.mapping.pose, obj, tracker)
     snapshots_dir = out / "progression"
     snapshots_dir.mkdir(exist_ok=True)

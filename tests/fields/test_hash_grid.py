@@ -5,7 +5,7 @@ from __future__ import annotations
 import pytest
 import torch
 
-from neuralfeels_sem.fields.hash_grid import HASH_PRIMES, HashGridEncoding, sum_rows
+from neuralfeels_sem.fields.hash_grid import HASH_PRIMES, HashGridConfig, HashGridEncoding, sum_rows
 
 
 def _tiny(dtype=torch.float64, **kwargs) -> HashGridEncoding:
@@ -17,14 +17,16 @@ def _tiny(dtype=torch.float64, **kwargs) -> HashGridEncoding:
         log2_table_size=6,
     )
     args.update(kwargs)
-    enc = HashGridEncoding(**args).to(dtype)
+    enc = HashGridEncoding(HashGridConfig(**args)).to(dtype)
     with torch.no_grad():
         enc.table.normal_()  # well away from zero so exact checks are meaningful
     return enc
 
 
 def test_levels_resolutions_and_dense_prefix() -> None:
-    enc = HashGridEncoding(num_levels=3, base_resolution=2, per_level_scale=2.0, log2_table_size=6)
+    enc = HashGridEncoding(
+        HashGridConfig(num_levels=3, base_resolution=2, per_level_scale=2.0, log2_table_size=6)
+    )
     # Resolutions 2, 4, 8: vertices 27 and 125 and 729; only 27 <= 64 is dense.
     assert enc.resolutions == [2, 4, 8]
     assert enc.num_dense_levels == 1
@@ -34,7 +36,7 @@ def test_levels_resolutions_and_dense_prefix() -> None:
     assert enc.table.shape == (27 + 64 + 64, 2)
     assert enc.out_dim == 6
     # The paper's defaults at the CPU table size: 16 levels up to resolution 2047, 5 dense.
-    enc = HashGridEncoding(log2_table_size=19)
+    enc = HashGridEncoding(HashGridConfig(log2_table_size=19))
     assert enc.resolutions[0] == 16 and enc.resolutions[-1] == 2047
     assert enc.num_dense_levels == 5
     assert all((r + 1) ** 3 <= 2**19 for r in enc.resolutions[:5])
@@ -124,17 +126,17 @@ def test_sparse_gradient_matches_dense_gradient() -> None:
 
 def test_deterministic_init_and_shapes() -> None:
     torch.manual_seed(3)
-    a = HashGridEncoding(log2_table_size=10, init_scale=1e-3)
+    a = HashGridEncoding(HashGridConfig(log2_table_size=10, init_scale=1e-3))
     torch.manual_seed(3)
-    b = HashGridEncoding(log2_table_size=10, init_scale=1e-3)
+    b = HashGridEncoding(HashGridConfig(log2_table_size=10, init_scale=1e-3))
     assert torch.equal(a.table, b.table)
     assert a.table.abs().max() <= 1e-3
     with pytest.raises(ValueError, match=r"\(N, 3\)"):
         a(torch.zeros(5, 2))
     with pytest.raises(ValueError, match="per_level_scale"):
-        HashGridEncoding(per_level_scale=0.5)
+        HashGridConfig(per_level_scale=0.5)
     with pytest.raises(ValueError, match="log2_table_size"):
-        HashGridEncoding(log2_table_size=40)
+        HashGridConfig(log2_table_size=40)
 
 
 def test_sum_rows_matches_unique_and_index_add() -> None:
@@ -164,7 +166,9 @@ def test_two_lookups_in_one_loss_accumulate_sparse_gradients() -> None:
 
 
 def test_corner_indices_match_a_naive_reference() -> None:
-    enc = HashGridEncoding(num_levels=5, base_resolution=3, per_level_scale=1.7, log2_table_size=9)
+    enc = HashGridEncoding(
+        HashGridConfig(num_levels=5, base_resolution=3, per_level_scale=1.7, log2_table_size=9)
+    )
     assert 0 < enc.num_dense_levels < enc.num_levels  # both kinds of level are covered
     x = torch.rand(40, 3, generator=torch.Generator().manual_seed(0))
     idx, weights = enc.corner_indices(x)

@@ -9,9 +9,14 @@ import pytest
 import torch
 from hydra.utils import instantiate
 
-from neuralfeels_sem.configs.model import HashGridConfig
 from neuralfeels_sem.fields import FieldAdam, SemanticField
+from neuralfeels_sem.fields.hash_grid import HashGridConfig
 from neuralfeels_sem.fields.optim import moments
+from neuralfeels_sem.fields.semantic_field import SemanticFieldConfig
+
+
+def tiny(num_classes: int, **encoding) -> SemanticFieldConfig:
+    return SemanticFieldConfig(num_classes=num_classes, encoding=HashGridConfig(**encoding))
 
 
 def _sparse(rows: torch.Tensor, values: torch.Tensor, shape: tuple[int, int]) -> torch.Tensor:
@@ -112,7 +117,7 @@ def _train(field: SemanticField, opt: torch.optim.Optimizer, steps: int, seed: i
 def test_state_dict_round_trip_resumes_exactly() -> None:
     def make() -> tuple[SemanticField, FieldAdam]:
         torch.manual_seed(0)
-        field = SemanticField(3, encoding=HashGridConfig(num_levels=4, log2_table_size=10))
+        field = SemanticField(tiny(3, num_levels=4, log2_table_size=10), bound=0.1)
         return field, FieldAdam(field.parameters(), lr=1e-2)
 
     field_a, opt_a = make()
@@ -137,7 +142,7 @@ def test_partial_factory_from_config_and_bad_arguments() -> None:
     factory = instantiate(
         {"_target_": "neuralfeels_sem.fields.optim.FieldAdam", "_partial_": True, "lr": 3e-3}
     )
-    field = SemanticField(2, encoding=HashGridConfig(num_levels=2, log2_table_size=8))
+    field = SemanticField(tiny(2, num_levels=2, log2_table_size=8), bound=0.1)
     opt = factory(field.parameters())
     assert isinstance(opt, FieldAdam) and opt.param_groups[0]["lr"] == 3e-3
     assert math.isclose(opt.param_groups[0]["betas"][1], 0.999)
@@ -145,9 +150,7 @@ def test_partial_factory_from_config_and_bad_arguments() -> None:
         with pytest.raises(ValueError):
             FieldAdam(field.parameters(), **kwargs)
     # Plain torch Adam needs dense table gradients: the dense option gives them.
-    dense = SemanticField(
-        2, encoding=HashGridConfig(num_levels=2, log2_table_size=8, sparse_grad=False)
-    )
+    dense = SemanticField(tiny(2, num_levels=2, log2_table_size=8, sparse_grad=False), bound=0.1)
     adam = torch.optim.Adam(dense.parameters(), lr=1e-3)
     dense.sdf(torch.zeros(4, 3)).sum().backward()
     adam.step()

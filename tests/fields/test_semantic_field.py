@@ -5,21 +5,26 @@ from __future__ import annotations
 import pytest
 import torch
 import torch.nn.functional as F
-from hydra.utils import instantiate
 
-from neuralfeels_sem.configs.model import HashGridConfig, MaterialHeadConfig, SdfHeadConfig
+from neuralfeels_sem.configs import to_config
 from neuralfeels_sem.fields import FieldAdam, SemanticField, evaluate_chunked
+from neuralfeels_sem.fields.hash_grid import HashGridConfig
+from neuralfeels_sem.fields.heads import MaterialHeadConfig, SdfHeadConfig
+from neuralfeels_sem.fields.semantic_field import SemanticFieldConfig
 from tests.helpers import compose_config
 
 TINY = HashGridConfig(num_levels=4, base_resolution=4, per_level_scale=1.5, log2_table_size=8)
 
 
+def make_field(num_classes: int, bound: float = 0.1, **settings) -> SemanticField:
+    """SemanticField from its config: `settings` over SemanticFieldConfig's defaults."""
+    return SemanticField(SemanticFieldConfig(num_classes=num_classes, **settings), bound)
+
+
 def _field(concat: bool = True, seed: int = 0, dtype=torch.float32, **kwargs) -> SemanticField:
     torch.manual_seed(seed)
     kwargs.setdefault("encoding", TINY)
-    field = SemanticField(
-        3, bound=0.1, material=MaterialHeadConfig(concat_sdf_features=concat), **kwargs
-    )
+    field = make_field(3, material=MaterialHeadConfig(concat_sdf_features=concat), **kwargs)
     with torch.no_grad():
         field.encoding.table.normal_(0.0, 0.5)  # a non-trivial field to test against
     return field.to(dtype)
@@ -60,7 +65,7 @@ def test_material_depends_on_sdf_features_only_with_concat(concat: bool) -> None
 def test_material_loss_leaves_the_sdf_branch_alone_unless_asked() -> None:
     for backprop in (False, True):
         torch.manual_seed(0)
-        field = SemanticField(
+        field = make_field(
             3,
             encoding=TINY,
             material=MaterialHeadConfig(concat_sdf_features=True, backprop_to_sdf=backprop),
@@ -74,9 +79,8 @@ def test_material_loss_leaves_the_sdf_branch_alone_unless_asked() -> None:
 
 def test_sdf_is_in_metres_and_gradcheck_of_the_whole_field() -> None:
     torch.manual_seed(0)
-    field = SemanticField(
+    field = make_field(
         3,
-        bound=0.1,
         encoding=HashGridConfig(**{**TINY.__dict__, "sparse_grad": False}),
         # z(x) is detached by default (a constant to the material loss); let x flow through it.
         material=MaterialHeadConfig(concat_sdf_features=True, backprop_to_sdf=True),
@@ -124,8 +128,8 @@ def test_points_outside_the_bound_are_clamped() -> None:
 def test_center_and_bound_place_the_cube() -> None:
     a = _field(seed=5)
     torch.manual_seed(5)
-    b = SemanticField(
-        3, bound=0.2, center=(0.3, -0.1, 0.05), encoding=TINY, material=MaterialHeadConfig()
+    b = make_field(
+        3, bound=0.2, center=[0.3, -0.1, 0.05], encoding=TINY, material=MaterialHeadConfig()
     )
     b.load_state_dict({k: v for k, v in a.state_dict().items() if k != "center"}, strict=False)
     x = _points()
@@ -150,11 +154,13 @@ def test_bad_shapes_and_arguments_raise() -> None:
         with pytest.raises(ValueError, match=r"\(N, 3\)"):
             field.sdf_gradient(bad)
     with pytest.raises(ValueError, match="num_classes"):
-        SemanticField(1)
+        SemanticFieldConfig(num_classes=1)
+    with pytest.raises(ValueError, match="num_classes"):
+        SemanticFieldConfig()  # the class count has no default: conf/model sets it
     with pytest.raises(ValueError, match="bound"):
-        SemanticField(3, bound=0.0)
+        make_field(3, bound=0.0)
     with pytest.raises(ValueError, match="center"):
-        SemanticField(3, center=(0.0, 0.0))
+        SemanticFieldConfig(num_classes=3, center=[0.0, 0.0])
 
 
 def test_evaluate_chunked_matches_one_pass() -> None:
@@ -169,7 +175,7 @@ def test_evaluate_chunked_matches_one_pass() -> None:
         evaluate_chunked(field.sdf, x, chunk=0)
 
 
-def test_config_instantiates_with_typed_blocks_and_a_bound_override() -> None:
+def test_config_builds_the_field_with_its_typed_blocks_and_the_computed_bound() -> None:
     cfg = compose_config(
         [
             "model.material.concat_sdf_features=false",
@@ -177,7 +183,8 @@ def test_config_instantiates_with_typed_blocks_and_a_bound_override() -> None:
             "materials=[a,b,c,d,e]",
         ]
     )
-    field = instantiate(cfg.model, bound=0.07)
+    assert "bound" not in cfg.model  # computed from the object, not a setting
+    field = SemanticField(to_config(SemanticFieldConfig, cfg.model), bound=0.07)
     assert isinstance(field, SemanticField)
     assert field.bound == 0.07 and field.num_classes == 5
     assert field.concat_sdf_features is False
@@ -200,7 +207,7 @@ def test_fits_a_two_material_sphere(concat: bool, one_thread) -> None:
     1024 labelled surface points to >= 98% agreement on fresh surface points."""
     torch.manual_seed(0)
     radius, bound = 0.05, 0.1
-    field = SemanticField(
+    field = make_field(
         2,
         bound=bound,
         encoding=HashGridConfig(log2_table_size=14),

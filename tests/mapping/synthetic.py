@@ -19,12 +19,26 @@ from neuralfeels_sem.mapping.sphere_scene import (  # noqa: F401  (re-exported f
 
 def small_field(concat: bool = True, log2_table_size: int = 15) -> torch.nn.Module:
     """The real SemanticField, with a small hash table (sparse gradients: FieldAdam) for fast CPU tests."""
-    from neuralfeels_sem.configs.model import HashGridConfig, MaterialHeadConfig
-    from neuralfeels_sem.fields.semantic_field import SemanticField
+    from neuralfeels_sem.fields.hash_grid import HashGridConfig
+    from neuralfeels_sem.fields.heads import MaterialHeadConfig
+    from neuralfeels_sem.fields.semantic_field import SemanticField, SemanticFieldConfig
 
-    return SemanticField(
+    config = SemanticFieldConfig(
         num_classes=2,
-        bound=0.08,
         encoding=HashGridConfig(log2_table_size=log2_table_size, sparse_grad=True),
         material=MaterialHeadConfig(concat_sdf_features=concat),
     )
+    return SemanticField(config, bound=0.08)
+
+
+def small_mapper(field: torch.nn.Module | None = None, lr: float = 3e-3, **settings):
+    """An OnlineMapper with the command line's settings (MapperConfig defaults) except
+    `settings`, on `field` (default: small_field()), with FieldAdam at `lr`, on the CPU."""
+    import functools
+
+    from neuralfeels_sem.fields.optim import FieldAdam
+    from neuralfeels_sem.mapping.mapper import MapperConfig, OnlineMapper
+
+    config = MapperConfig(**{"num_classes": 2, **settings})
+    field = small_field() if field is None else field
+    return OnlineMapper(config, field, functools.partial(FieldAdam, lr=lr), "cpu")

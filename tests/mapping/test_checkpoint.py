@@ -2,7 +2,6 @@
 
 from __future__ import annotations
 
-import functools
 import random
 
 import numpy as np
@@ -10,11 +9,10 @@ import pytest
 import torch
 
 from neuralfeels_sem.errors import ConfigError, DataError
-from neuralfeels_sem.fields.optim import FieldAdam
 from neuralfeels_sem.mapping import checkpoint as checkpoint_module
 from neuralfeels_sem.mapping.checkpoint import load_checkpoint, save_checkpoint
 from neuralfeels_sem.mapping.mapper import OnlineMapper
-from tests.mapping.synthetic import small_field, sphere_frames
+from tests.mapping.synthetic import small_field, small_mapper, sphere_frames
 
 FRAMES = sphere_frames(6, touches_per_frame=2)
 
@@ -22,11 +20,10 @@ FRAMES = sphere_frames(6, touches_per_frame=2)
 def make_mapper(
     init_seed: int = 0, log2_table_size: int = 12, space_prior_points: int = 0
 ) -> OnlineMapper:
+    """The command line's mapper at toy size (the label vote on, the space prior as asked)."""
     torch.manual_seed(init_seed)
-    return OnlineMapper(
+    return small_mapper(
         small_field(log2_table_size=log2_table_size),
-        functools.partial(FieldAdam, lr=3e-3),
-        num_classes=2,
         steps_per_frame=2,
         warmup_steps=4,
         camera_rays=32,
@@ -82,10 +79,11 @@ def test_resume_after_kill_matches_uninterrupted_run(tmp_path, space_prior_point
                 else value == res_opt[key][name]
             )
             assert same, (key, name)
-    assert reference.keyframes.losses == resumed.keyframes.losses
+    assert reference.memory.keyframes.losses == resumed.memory.keyframes.losses
     if space_prior_points:
-        assert np.array_equal(reference.space_prior.carved, resumed.space_prior.carved)
-        assert np.array_equal(reference.space_prior.hull_points, resumed.space_prior.hull_points)
+        ref_prior, res_prior = reference.memory.space_prior, resumed.memory.space_prior
+        assert np.array_equal(ref_prior.carved, res_prior.carved)
+        assert np.array_equal(ref_prior.hull_points, res_prior.hull_points)
 
 
 def test_kill_during_write_keeps_the_last_good_checkpoint(tmp_path, monkeypatch) -> None:
@@ -112,12 +110,12 @@ def test_different_model_is_a_one_line_config_error(tmp_path) -> None:
     path = tmp_path / "checkpoint.pt"
     mapper = make_mapper()
     feed(mapper, FRAMES[:1])
-    save_checkpoint(path, mapper, frame_index=0, model_config={"bound": 0.08})
+    save_checkpoint(path, mapper, frame_index=0, model_config={"center": [0.0, 0.0, 0.0]})
     with pytest.raises(ConfigError) as info:
         load_checkpoint(path, make_mapper(log2_table_size=13))
     assert "shapes" in str(info.value) and "\n" not in str(info.value)
-    with pytest.raises(ConfigError, match="model.bound"):
-        load_checkpoint(path, make_mapper(), model_config={"bound": 0.1})
+    with pytest.raises(ConfigError, match="model.center"):
+        load_checkpoint(path, make_mapper(), model_config={"center": [0.0, 0.0, 0.01]})
 
 
 def test_missing_or_corrupt_checkpoint_is_a_data_error(tmp_path) -> None:
@@ -127,3 +125,17 @@ def test_missing_or_corrupt_checkpoint_is_a_data_error(tmp_path) -> None:
     bad.write_bytes(b"not a checkpoint")
     with pytest.raises(DataError, match="unreadable"):
         load_checkpoint(bad, make_mapper())
+
+
+def test_a_checkpoint_from_before_bound_left_the_model_config_still_loads(tmp_path) -> None:
+    """Older runs saved `_target_`, `_convert_` and the declared `bound` in the model config;
+    none is a model setting (the bound is computed from the object), so resuming ignores them."""
+    path = tmp_path / "checkpoint.pt"
+    mapper = make_mapper()
+    feed(mapper, FRAMES[:1])
+    settings = {"num_classes": 2, "sdf": {"hidden_dim": 64}}
+    old = {"_target_": "neuralfeels_sem.fields.semantic_field.SemanticField", "_convert_": "object"}
+    save_checkpoint(path, mapper, frame_index=0, model_config={**old, "bound": 0.1, **settings})
+    assert load_checkpoint(path, make_mapper(), model_config=settings)["frame_index"] == 0
+    with pytest.raises(ConfigError, match="model.sdf"):
+        load_checkpoint(path, make_mapper(), model_config={**settings, "sdf": {"hidden_dim": 32}})

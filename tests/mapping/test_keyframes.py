@@ -1,11 +1,23 @@
-"""Keyframe window (recent + by loss), eviction and the touch replay buffer."""
+"""Keyframe window (recent + by loss), eviction, the touch replay buffer and the label vote."""
 
 from __future__ import annotations
 
 import pytest
 import torch
 
-from neuralfeels_sem.mapping.keyframes import KeyframeBuffer, TouchBuffer
+from neuralfeels_sem.mapping.keyframes import KeyframeBuffer
+from neuralfeels_sem.mapping.label_vote import LabelVote, outvoted_touches, press_events
+from neuralfeels_sem.mapping.mapper import MapperConfig
+from neuralfeels_sem.mapping.touch_memory import TouchBuffer
+
+CPU = torch.device("cpu")
+
+
+def vote(**settings) -> LabelVote:
+    """The vote's rules one at a time: `settings` (radius=..., ...) over a vote with support,
+    presses and the separate support radius off; the command line's values otherwise."""
+    base = {"min_support": 0, "press_gap": 0, "support_radius": None, **settings}
+    return LabelVote.from_config(MapperConfig(**{f"label_vote_{k}": v for k, v in base.items()}))
 
 
 def filled(n: int, **kwargs) -> KeyframeBuffer:
@@ -43,7 +55,7 @@ def test_empty_keyframe_is_not_stored() -> None:
 
 
 def test_touch_buffer_keeps_labelled_subset_and_round_trips() -> None:
-    touches = TouchBuffer(torch.device("cpu"))
+    touches = TouchBuffer(CPU)
     touches.add(torch.zeros(4, 3), torch.tensor([0.0, 0.0, 1.0]), label=1, weight=0.8)
     touches.add(torch.ones(4, 3), torch.tensor([1.0, 0.0, 0.0]), label=-1, weight=0.0)
     cat = touches.tensors()
@@ -52,17 +64,15 @@ def test_touch_buffer_keeps_labelled_subset_and_round_trips() -> None:
     assert torch.allclose(cat["labelled_weights"], torch.full((4,), 0.8))
     assert torch.equal(cat["axes"][5], torch.tensor([1.0, 0.0, 0.0]))
     assert (touches.num_touches, touches.num_labelled) == (2, 1)
-    copy = TouchBuffer(torch.device("cpu"))
+    copy = TouchBuffer(CPU)
     copy.load_state_dict(touches.state_dict())
     for key, value in copy.tensors().items():
         assert torch.equal(value, cat[key]), key
 
 
 def test_label_vote_drops_a_touch_its_neighbours_contradict() -> None:
-    from neuralfeels_sem.mapping.keyframes import outvoted_touches
-
     axis = torch.tensor([0.0, 0.0, 1.0])
-    touches = TouchBuffer(torch.device("cpu"), vote_radius=0.01, vote_min_neighbours=3)
+    touches = TouchBuffer(CPU, vote(radius=0.01, min_neighbours=3))
     centre = torch.tensor([0.02, 0.0, 0.0])
     for k in range(5):  # five fabric touches around one point
         offset = torch.tensor([0.002 * k, 0.001, 0.0])
@@ -76,8 +86,8 @@ def test_label_vote_drops_a_touch_its_neighbours_contradict() -> None:
     assert touches.num_outvoted == 1
     assert cat["labelled_points"].shape == (6 * 4, 3)
     assert (cat["labelled_labels"] == 0).sum() == 4  # only the far plastic touch is left
-    # Off by default: every labelled touch is used.
-    plain = TouchBuffer(torch.device("cpu"))
+    # Without a vote every labelled touch is used.
+    plain = TouchBuffer(CPU)
     plain.load_state_dict(touches.state_dict())
     assert plain.tensors()["labelled_points"].shape == (7 * 4, 3) and plain.num_outvoted == 0
     # A touch with too few neighbours, or enough agreeing ones, is kept.
@@ -95,8 +105,6 @@ def test_label_vote_drops_a_touch_its_neighbours_contradict() -> None:
 
 
 def test_label_vote_min_support_drops_a_lone_touch_until_another_agrees() -> None:
-    from neuralfeels_sem.mapping.keyframes import outvoted_touches
-
     c = torch.tensor([[0.0, 0, 0], [0.001, 0, 0], [0.05, 0, 0]])
     labels = torch.tensor([2, 2, 0])  # two agreeing fabric touches, one lone plastic far off
     assert outvoted_touches(c, labels, 0.01, 3, 0.25).tolist() == [False, False, False]
@@ -111,7 +119,7 @@ def test_label_vote_min_support_drops_a_lone_touch_until_another_agrees() -> Non
     assert not outvoted_touches(c2, labels2, 0.01, 3, 0.25, min_support=1).any()
 
     axis = torch.tensor([0.0, 0.0, 1.0])
-    touches = TouchBuffer(torch.device("cpu"), vote_radius=0.01, vote_min_support=1)
+    touches = TouchBuffer(CPU, vote(radius=0.01, min_support=1))
     touches.add(torch.zeros(4, 3), axis, label=1, weight=0.9)
     assert touches.num_outvoted == 1 and touches.tensors()["labelled_points"].shape == (0, 3)
     touches.add(torch.full((4, 3), 0.001), axis, label=1, weight=0.9)
@@ -119,8 +127,6 @@ def test_label_vote_min_support_drops_a_lone_touch_until_another_agrees() -> Non
 
 
 def test_press_events_group_a_fingers_consecutive_frames() -> None:
-    from neuralfeels_sem.mapping.keyframes import press_events
-
     fingers = ["index", "index", "ring", "index", "index", None, None]
     frames = [1, 2, 2, 6, 7, 7, 7]
     assert press_events(fingers, frames, gap=2).tolist() == [0, 0, 2, 3, 3, 5, 6]
@@ -130,8 +136,6 @@ def test_press_events_group_a_fingers_consecutive_frames() -> None:
 
 
 def test_frames_of_one_press_do_not_back_each_other() -> None:
-    from neuralfeels_sem.mapping.keyframes import outvoted_touches
-
     # Three fabric presses and, in the same place, one press misread as plastic in 3 frames.
     c = torch.tensor([[0.0, 0, 0], [0.002, 0, 0], [0, 0.002, 0]] + [[0.001, 0.001, 0]] * 3)
     labels = torch.tensor([2, 2, 2, 0, 0, 0])
@@ -151,9 +155,7 @@ def test_frames_of_one_press_do_not_back_each_other() -> None:
 
 def test_touch_buffer_counts_presses_and_keeps_them_in_its_state() -> None:
     axis = torch.tensor([0.0, 0.0, 1.0])
-    touches = TouchBuffer(
-        torch.device("cpu"), vote_radius=0.01, vote_min_support=1, vote_press_gap=2
-    )
+    touches = TouchBuffer(CPU, vote(radius=0.01, min_support=1, press_gap=2))
     touches.add(torch.zeros(4, 3), axis, label=1, weight=0.9, finger="ring", frame_index=5)
     touches.add(torch.full((4, 3), 0.001), axis, label=1, weight=0.9, finger="ring", frame_index=6)
     assert touches.num_outvoted == 2  # one press, nobody else backs it
@@ -161,9 +163,7 @@ def test_touch_buffer_counts_presses_and_keeps_them_in_its_state() -> None:
     assert touches.num_outvoted == 0  # another finger agrees
     state = touches.state_dict()
     assert state["fingers"] == ["ring", "ring", "thumb"] and state["frames"] == [5, 6, 6]
-    restored = TouchBuffer(
-        torch.device("cpu"), vote_radius=0.01, vote_min_support=1, vote_press_gap=2
-    )
+    restored = TouchBuffer(CPU, vote(radius=0.01, min_support=1, press_gap=2))
     restored.load_state_dict(state)
     assert restored.num_outvoted == 0
     # A checkpoint written before presses were recorded: every touch votes on its own.
@@ -173,8 +173,6 @@ def test_touch_buffer_counts_presses_and_keeps_them_in_its_state() -> None:
 
 
 def test_support_is_looked_for_within_its_own_radius() -> None:
-    from neuralfeels_sem.mapping.keyframes import outvoted_touches
-
     # Two fabric presses 3 cm apart: neither backs the other within the 2 cm vote radius.
     c = torch.tensor([[0.0, 0, 0], [0.03, 0, 0], [0.2, 0, 0]])
     labels = torch.tensor([2, 2, 0])

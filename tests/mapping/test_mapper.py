@@ -3,15 +3,14 @@
 from __future__ import annotations
 
 import dataclasses
-import functools
 
 import numpy as np
 import pytest
 import torch
 
 from neuralfeels_sem.errors import ConfigError, NoDataError, NumericalError
-from neuralfeels_sem.fields.optim import FieldAdam
-from neuralfeels_sem.mapping.mapper import OnlineMapper, resolve_pose_source
+from neuralfeels_sem.mapping.mapper import MapperConfig, OnlineMapper
+from neuralfeels_sem.mapping.pose_source import resolve_pose_source
 from neuralfeels_sem.perception.pointcloud import camera_points
 from neuralfeels_sem.perception.touch import TouchLabel
 from neuralfeels_sem.sensors.frame import Frame
@@ -20,6 +19,7 @@ from tests.mapping.synthetic import (
     RADIUS,
     fibonacci_directions,
     small_field,
+    small_mapper,
     sphere_frames,
     sphere_surface,
     true_label,
@@ -27,18 +27,14 @@ from tests.mapping.synthetic import (
 
 
 def make_mapper(concat: bool = True, **kwargs) -> OnlineMapper:
+    """The command line's mapper (MapperConfig defaults), smaller batches, `kwargs` changed."""
     torch.manual_seed(0)
     args = dict(
         steps_per_frame=10, warmup_steps=40, camera_rays=128, tactile_rays=64,
         band_samples=3, free_samples=2, material_points=256, seed=0,
     )  # fmt: skip
     args.update(kwargs)
-    return OnlineMapper(
-        small_field(concat=concat, log2_table_size=14),
-        functools.partial(FieldAdam, lr=3e-3),
-        2,
-        **args,
-    )
+    return small_mapper(small_field(concat=concat, log2_table_size=14), **args)
 
 
 def test_frame_points_use_the_given_pose() -> None:
@@ -55,7 +51,7 @@ def test_frame_points_use_the_given_pose() -> None:
     shifted = mapper.frame_points(frame, moved)["camera"]
     assert np.abs(np.linalg.norm(shifted, axis=1) - RADIUS).mean() > 2e-3
     mapper.add_frame(frame, world_T_object=moved)
-    stored = mapper.keyframes.points[0].numpy()
+    stored = mapper.memory.keyframes.points[0].numpy()
     assert np.abs(np.linalg.norm(stored, axis=1) - RADIUS).mean() > 2e-3
 
 
@@ -76,7 +72,7 @@ def test_one_unmasked_back_projection_gives_the_masked_surface_points(
     frame = dataclasses.replace(frame, camera=dataclasses.replace(camera, depth=depth, mask=mask))
     mapper = make_mapper(space_prior_points=64, use_camera_mask=use_camera_mask)
     pose = frame.world_T_object
-    points, every = mapper._frame_points(frame, pose, every_pixel=True)
+    points, every = mapper.points.extract(frame, pose, every_pixel=True)
     assert np.array_equal(every, camera_points(frame.camera, pose, use_mask=False))
     assert np.array_equal(points["camera"], camera_points(frame.camera, pose, use_camera_mask))
     assert np.array_equal(points["camera"], mapper.frame_points(frame, pose)["camera"])
@@ -88,9 +84,12 @@ def test_one_unmasked_back_projection_gives_the_masked_surface_points(
 
 def test_counts_losses_and_warmup() -> None:
     frames = sphere_frames(3, touches_per_frame=2)
+    # Exact counts: without the space prior (its share varies per step) and the label vote
+    # (it would leave out these few far-apart touches); both are counted in the next test.
     mapper = make_mapper(
-        camera_points_per_frame=500, tactile_points_per_touch=64, steps_per_frame=2, warmup_steps=5
-    )
+        camera_points_per_frame=500, tactile_points_per_touch=64, steps_per_frame=2,
+        warmup_steps=5, space_prior_points=0, label_vote_radius=0.0,
+    )  # fmt: skip
     labels = dict(frames[0][1])
     labels["middle"] = TouchLabel(
         "middle", contact=True, label=1, confidence=0.3, low_confidence=True
@@ -105,6 +104,20 @@ def test_counts_losses_and_warmup() -> None:
         "frames": 3, "camera_points": 1500, "tactile_points": 6 * 64, "touches": 6,
         "labelled_touches": 5, "outvoted_touches": 0, "optimizer_steps": 5 + 2 + 2,
     }  # fmt: skip
+
+
+def test_the_command_lines_space_prior_and_label_vote_show_in_the_counts() -> None:
+    frames = sphere_frames(3, touches_per_frame=2)
+    mapper = make_mapper(steps_per_frame=2, warmup_steps=5)
+    geometry = 128 * 6 + 64 * 6
+    for frame, labels in frames:
+        losses = mapper.add_frame(frame, labels)
+        # The prior's points (up to 512 per step, fewer where its sign is ambiguous).
+        assert geometry + 256 < losses["points"] <= geometry + 512 and losses["space"] > 0
+    trained = mapper.trained_on
+    # Six lone presses, none backed by another within 4 cm: the vote leaves all out.
+    assert trained["labelled_touches"] == trained["outvoted_touches"] == 6
+    assert losses["material"] == 0
 
 
 def test_empty_frames_train_nothing_and_optimize_needs_data() -> None:
@@ -126,7 +139,8 @@ def test_pose_source() -> None:
 @pytest.mark.parametrize("label_kind", ["none", "low_confidence", "no_contact"])
 def test_unlabelled_touches_do_not_train_the_material_branch(label_kind: str) -> None:
     frames = sphere_frames(1, touches_per_frame=4)
-    mapper = make_mapper(steps_per_frame=2, warmup_steps=2)
+    # Vote off: it would leave out these four lone touches even with usable labels.
+    mapper = make_mapper(steps_per_frame=2, warmup_steps=2, label_vote_radius=0.0)
     before = {k: v.clone() for k, v in mapper.field.material_head.state_dict().items()}
     sdf_before = {k: v.clone() for k, v in mapper.field.sdf_head.state_dict().items()}
     for frame, labels in frames:
@@ -209,7 +223,11 @@ def test_material_split_from_sparse_touches(concat: bool) -> None:
 
 
 def test_eikonal_term_trains_through_the_sparse_hash_grid() -> None:
-    mapper = make_mapper(steps_per_frame=2, warmup_steps=2, eikonal_weight=0.1, eikonal_points=64)
+    # Exact point count: no space prior, no vote (as in test_counts_losses_and_warmup).
+    mapper = make_mapper(
+        steps_per_frame=2, warmup_steps=2, eikonal_weight=0.1, eikonal_points=64,
+        space_prior_points=0, label_vote_radius=0.0,
+    )  # fmt: skip
     frame, labels = sphere_frames(1, touches_per_frame=1)[0]
     losses = mapper.add_frame(frame, labels)
     assert losses["eikonal"] > 0
@@ -218,10 +236,14 @@ def test_eikonal_term_trains_through_the_sparse_hash_grid() -> None:
 
 
 @pytest.mark.parametrize("bad", [{"num_classes": 1}, {"truncation": 0.0}, {"steps_per_frame": -1}])
-def test_bad_arguments_raise_value_error(bad: dict) -> None:
-    args = {"num_classes": 2, **bad}
+def test_bad_settings_are_refused_by_the_config(bad: dict) -> None:
     with pytest.raises(ValueError, match=next(iter(bad))):
-        OnlineMapper(small_field(log2_table_size=10), functools.partial(FieldAdam, lr=1e-3), **args)
+        MapperConfig(**bad)
+
+
+def test_a_field_with_another_class_count_is_refused() -> None:
+    with pytest.raises(ConfigError, match="classes"):
+        small_mapper(small_field(log2_table_size=10), num_classes=3)
 
 
 def test_non_finite_pose_or_loss_is_a_one_line_numerical_error() -> None:

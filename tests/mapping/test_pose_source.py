@@ -16,7 +16,7 @@ from neuralfeels_sem.mapping.pose_source import (
     average_3d_error,
     build_pose_source,
 )
-from neuralfeels_sem.mapping.pose_tracker import PoseTracker, se3_exp
+from neuralfeels_sem.mapping.pose_tracker import PoseTracker, TrackerConfig, se3_exp
 from neuralfeels_sem.objects.material_object import MaterialObject
 from neuralfeels_sem.sensors.frame import Frame
 from neuralfeels_sem.utils.geometry import transform_points
@@ -33,15 +33,21 @@ def egg() -> MaterialObject:
 
 
 class FakeMapper:
-    """What a pose source reads from OnlineMapper: frame_points, field.sdf, warmed_up.
+    """The MapView a pose source reads from OnlineMapper: frame_points, sdf, has_surface.
 
-    Observes the half of the object facing +x, at the frame's ground-truth pose."""
+    Observes the half of the object facing +x, at the frame's ground-truth pose; `sdf`
+    (None: no field) stands in for the learned field."""
 
-    def __init__(self, obj: MaterialObject, points: int = 600, warmed_up: bool = True) -> None:
+    def __init__(
+        self, obj: MaterialObject, points: int = 600, has_surface: bool = True, sdf=None
+    ) -> None:
         self.obj_points = obj.sample_surface(4 * points, seed=1)[0]
         self.points = points
-        self.warmed_up = warmed_up
-        self.field = None
+        self.has_surface = has_surface
+        self._sdf = sdf
+
+    def sdf(self, x: torch.Tensor) -> torch.Tensor:
+        return self._sdf(x)
 
     def frame_points(self, frame: Frame, world_T_object: np.ndarray) -> dict[str, np.ndarray]:
         assert np.array_equal(world_T_object, np.eye(4))  # world-frame points
@@ -139,7 +145,7 @@ def test_state_resumes_the_same_estimates(obj) -> None:
 
 def test_track_keeps_the_prediction_until_the_field_has_a_surface(obj) -> None:
     source = TrackedPose("track", obj)
-    mapper = FakeMapper(obj, warmed_up=False)
+    mapper = FakeMapper(obj, has_surface=False)
     poses = trajectory(3)
     for k, gt in enumerate(poses):
         est = source.estimate(frame_at(k, gt), mapper)
@@ -148,15 +154,9 @@ def test_track_keeps_the_prediction_until_the_field_has_a_surface(obj) -> None:
 
 
 def test_track_aligns_to_the_mappers_field(obj) -> None:
-    """`track` reads mapper.field.sdf: here the exact object SDF stands in for a trained field."""
+    """`track` reads mapper.sdf: here the exact object SDF stands in for a trained field."""
     grid = known_shape_source(obj)._sdf_fn(None)
-
-    class Field:
-        def sdf(self, x: torch.Tensor) -> torch.Tensor:
-            return grid(x)
-
-    mapper = FakeMapper(obj)
-    mapper.field = Field()
+    mapper = FakeMapper(obj, sdf=grid)
     source = TrackedPose("track", obj)
     for k, gt in enumerate(trajectory(6)):
         est = source.estimate(frame_at(k, gt), mapper)
@@ -165,7 +165,10 @@ def test_track_aligns_to_the_mappers_field(obj) -> None:
 
 def test_frame_with_too_few_points_keeps_the_prediction(obj, caplog) -> None:
     source = TrackedPose(
-        "track_known_shape", obj, PoseTracker(min_points=100), known_shape_resolution=48
+        "track_known_shape",
+        obj,
+        PoseTracker(TrackerConfig(min_points=100)),
+        known_shape_resolution=48,
     )
     poses = trajectory(3)
     source.estimate(frame_at(0, poses[0]), FakeMapper(obj))
@@ -183,15 +186,16 @@ def test_bad_construction(obj) -> None:
         TrackedPose("track_known_shape", None)
 
 
-def test_tracker_config_builds_the_tracker() -> None:
-    from hydra.utils import instantiate
-
-    from neuralfeels_sem.configs.mapping import TrackerConfig
+def test_tracker_config_builds_the_tracker_only_for_tracking_modes(obj) -> None:
+    from neuralfeels_sem.configs import to_config
     from tests.helpers import compose_config
 
     cfg = compose_config(["mapping.pose=track", "mapping.tracker.source_weights.camera=0"])
-    tracker = instantiate(cfg.mapping.tracker)
+    config = to_config(TrackerConfig, cfg.mapping.tracker)
+    source = build_pose_source(cfg.mapping.pose, obj, config)
+    tracker = source.tracker
     assert isinstance(tracker, PoseTracker)
     assert tracker.source_weight("camera") == 0.0 and tracker.source_weight("thumb") == 1.0
+    assert not hasattr(build_pose_source("gt", obj, config), "tracker")
     with pytest.raises(ValueError, match="robust_loss"):
         TrackerConfig(robust_loss="l1")

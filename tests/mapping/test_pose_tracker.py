@@ -14,6 +14,7 @@ import trimesh
 from neuralfeels_sem.mapping.known_shape import GridSdf, mesh_sdf_grid
 from neuralfeels_sem.mapping.pose_tracker import (
     PoseTracker,
+    TrackerConfig,
     constant_velocity,
     robust_weights,
     se3_exp,
@@ -100,7 +101,7 @@ def test_tracks_a_sphere_and_box_through_a_trajectory() -> None:
     obj_pts = surface_points(1500)
     # Only the half facing the "camera" (+x) is observed, with 0.3 mm of noise.
     rng = np.random.default_rng(2)
-    tracker = PoseTracker(robust_loss="huber", prior_weight=1e-3)
+    tracker = PoseTracker(TrackerConfig(robust_loss="huber", prior_weight=1e-3))
     truth = [pose((0, 0, 0), (0.0, 0.0, 0.15))]
     for k in range(1, 15):  # wobble plus a steady turn: ~3 deg and ~1.5 mm per frame
         truth.append(
@@ -133,7 +134,7 @@ def test_recovers_a_large_initial_offset_from_touch_and_camera() -> None:
     init = truth @ pose((-4, 3, -5), (0.004, 0.003, -0.003))
     world = transform_points(truth, obj_pts)
     points = {"camera": world[:800], "index": world[800:900], "thumb": world[900:1000]}
-    est, info = PoseTracker(iterations=30).track(points, sphere_box_sdf, init)
+    est, info = PoseTracker(TrackerConfig(iterations=30)).track(points, sphere_box_sdf, init)
     assert error_mm(init, truth, obj_pts) > 5
     assert error_mm(est, truth, obj_pts) < 0.5, info
 
@@ -145,14 +146,14 @@ def test_source_weights_switch_modalities_off() -> None:
     world = transform_points(truth, obj_pts)
     bad_camera = world[:400] + np.array([0.0, 0.0, 0.01])  # a camera 1 cm off
     points = {"camera": bad_camera, "index": world[400:]}
-    touch_only = PoseTracker(source_weights={"camera": 0.0}, iterations=30)
+    touch_only = PoseTracker(TrackerConfig(source_weights={"camera": 0.0}, iterations=30))
     est, info = touch_only.track(points, sphere_box_sdf, init)
     assert info["points"] == 200
     assert error_mm(est, truth, obj_pts) < 0.5
 
 
 def test_too_few_points_keeps_the_prediction_and_says_so(caplog) -> None:
-    tracker = PoseTracker(min_points=50)
+    tracker = PoseTracker(TrackerConfig(min_points=50))
     init = pose((0, 0, 10), (0.0, 0.0, 0.1))
     predicted = pose((0, 0, 12), (0.001, 0.0, 0.1))
     few = {"index": surface_points(20)}
@@ -177,7 +178,7 @@ def test_prior_holds_unobservable_directions() -> None:
     def sphere(x: torch.Tensor) -> torch.Tensor:
         return x.norm(dim=1) - SPHERE_R
 
-    est, _ = PoseTracker(iterations=30).track(
+    est, _ = PoseTracker(TrackerConfig(iterations=30)).track(
         {"camera": transform_points(truth, pts)}, sphere, predicted, prior=predicted
     )
     np.testing.assert_allclose(est[:3, 3], truth[:3, 3], atol=1e-4)  # translation observed
@@ -185,12 +186,12 @@ def test_prior_holds_unobservable_directions() -> None:
 
 
 def test_bad_arguments() -> None:
-    with pytest.raises(ValueError):
-        PoseTracker(iterations=0)
-    with pytest.raises(ValueError):
-        PoseTracker(robust_loss="l2")
-    with pytest.raises(ValueError):
-        PoseTracker(source_weights={"camera": -1.0})
+    with pytest.raises(ValueError, match="iterations"):
+        TrackerConfig(iterations=0)
+    with pytest.raises(ValueError, match="robust_loss"):
+        TrackerConfig(robust_loss="l2")
+    with pytest.raises(ValueError, match="source_weights"):
+        TrackerConfig(source_weights={"camera": -1.0})
     with pytest.raises(ValueError, match="shape"):
         PoseTracker().track({"camera": np.zeros((10, 2))}, sphere_box_sdf, np.eye(4))
     with pytest.raises(ValueError, match="4x4"):
@@ -267,16 +268,16 @@ def test_runaway_steps_are_damped_and_a_diverged_result_keeps_the_prediction(cap
     world[:, 0] = 0.2  # every point 20 cm in front of the wall
     init = np.eye(4)
     # Every LM step is capped at 1 cm, so 10 steps move the object at most 10 cm.
-    est, info = PoseTracker(iterations=10, prior_weight=0.0, max_motion_m=1.0).track(
+    est, info = PoseTracker(TrackerConfig(iterations=10, prior_weight=0.0, max_motion_m=1.0)).track(
         {"camera": world}, plane_with_flat_far_field, init
     )
     assert info["skipped"] is None
     assert 0.005 < np.linalg.norm(est[:3, 3]) <= 0.1 + 1e-9
     # A result further than max_motion_m from the prediction is not trusted.
     with caplog.at_level(logging.WARNING):
-        est, info = PoseTracker(iterations=10, prior_weight=0.0, max_motion_m=0.005).track(
-            {"camera": world}, plane_with_flat_far_field, init
-        )
+        est, info = PoseTracker(
+            TrackerConfig(iterations=10, prior_weight=0.0, max_motion_m=0.005)
+        ).track({"camera": world}, plane_with_flat_far_field, init)
     assert info["skipped"].startswith("diverged")
     np.testing.assert_array_equal(est, init)
     assert "diverged" in caplog.text

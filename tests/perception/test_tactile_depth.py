@@ -6,8 +6,8 @@ import cv2
 import numpy as np
 import pytest
 
-from neuralfeels_sem.errors import ConfigError, DataError
-from neuralfeels_sem.perception.tactile_depth import TactileDepth
+from neuralfeels_sem.errors import DataError
+from neuralfeels_sem.perception.tactile_depth import TactileDepth, TactileDepthConfig
 from neuralfeels_sem.sensors.frame import TactileReading
 from neuralfeels_sem.sim.digit_geometry import DIGIT_INTRINSICS, GEL_DISTANCE_M, MAX_PENETRATION_M
 from tests.mapping.synthetic import digit_reading, object_pose
@@ -35,7 +35,7 @@ def background() -> np.ndarray:
 
 def test_gt_source_returns_simulator_depth() -> None:
     reading = digit_reading("index", object_pose(), np.array([0.0, 1.0, 0.0]))
-    depth = TactileDepth("gt")(reading)
+    depth = TactileDepth(TactileDepthConfig("gt"))(reading)
     np.testing.assert_array_equal(depth, reading.gt_depth)
     assert depth.dtype == np.float32 and depth.any()
 
@@ -44,18 +44,18 @@ def test_gt_source_without_ground_truth_is_a_data_error() -> None:
     reading = digit_reading("index", object_pose(), np.array([0.0, 1.0, 0.0]))
     reading.gt_depth = None
     with pytest.raises(DataError, match="source=image"):
-        TactileDepth("gt")(reading)
+        TactileDepth(TactileDepthConfig("gt"))(reading)
 
 
-def test_unknown_source_is_a_config_error() -> None:
-    with pytest.raises(ConfigError):
-        TactileDepth("lidar")
+def test_unknown_source_is_refused_by_the_config() -> None:
+    with pytest.raises(ValueError, match="lidar"):
+        TactileDepthConfig("lidar")
 
 
 def test_image_estimate_finds_the_pressed_disk(background: np.ndarray) -> None:
     image, disk = pressed_image(background, (120, 160), 40, peak=60.0)
     reading = TactileReading("middle", image, np.eye(4), DIGIT_INTRINSICS, background=background)
-    depth = TactileDepth("image")(reading)
+    depth = TactileDepth(TactileDepthConfig("image"))(reading)
     mask = depth > 0
     iou = (mask & disk).sum() / (mask | disk).sum()
     assert iou > 0.85
@@ -70,19 +70,19 @@ def test_image_estimate_without_contact_is_empty(background: np.ndarray) -> None
     rng = np.random.default_rng(1)
     noisy = np.clip(background + rng.normal(0, 3.0, background.shape), 0, 255).astype(np.uint8)
     reading = TactileReading("ring", noisy, np.eye(4), DIGIT_INTRINSICS, background=background)
-    assert not TactileDepth("image")(reading).any()
+    assert not TactileDepth(TactileDepthConfig("image"))(reading).any()
 
 
 def test_tiny_blob_is_not_a_contact(background: np.ndarray) -> None:
     image, _ = pressed_image(background, (60, 60), 6, peak=80.0)
     reading = TactileReading("thumb", image, np.eye(4), DIGIT_INTRINSICS, background=background)
-    assert not TactileDepth("image", min_contact_px=150)(reading).any()
+    assert not TactileDepth(TactileDepthConfig("image", min_contact_px=150))(reading).any()
 
 
 def test_image_source_needs_a_background(background: np.ndarray) -> None:
     reading = TactileReading("index", background, np.eye(4), DIGIT_INTRINSICS, background=None)
     with pytest.raises(DataError, match="background"):
-        TactileDepth("image")(reading)
+        TactileDepth(TactileDepthConfig("image"))(reading)
 
 
 def test_real_digit_frames(shared_data) -> None:
@@ -91,7 +91,9 @@ def test_real_digit_frames(shared_data) -> None:
     folder = shared_data / "digit_real"
     bg = cv2.imread(str(folder / "backgrounds" / "aurova_bg_1.png"))[..., ::-1].copy()
     grasp = cv2.imread(str(folder / "contact" / "ycb_grasp_1.png"))[..., ::-1].copy()
-    estimator = TactileDepth("image", contact_threshold=20.0, full_press_intensity=80.0)
+    estimator = TactileDepth(
+        TactileDepthConfig("image", contact_threshold=20.0, full_press_intensity=80.0)
+    )
     noisy = np.clip(bg + np.random.default_rng(0).normal(0, 2.0, bg.shape), 0, 255).astype(np.uint8)
     assert not estimator.from_image(noisy, bg).any()
     depth = estimator.from_image(grasp, bg)

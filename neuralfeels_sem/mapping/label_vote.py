@@ -1,0 +1,159 @@
+"""The label vote: which labelled touches the material loss leaves out.
+
+One confident misclassification among many consistent touches would otherwise paint its
+own patch of the map. The settings are MapperConfig's `label_vote_*` (mapping/mapper.py);
+`LabelVote.from_config` gathers them, and TouchBuffer applies the vote to its touches.
+"""
+
+from __future__ import annotations
+
+from dataclasses import dataclass
+from typing import TYPE_CHECKING
+
+import torch
+
+if TYPE_CHECKING:
+    from neuralfeels_sem.mapping.mapper import MapperConfig
+
+
+@dataclass(frozen=True)
+class LabelVote:
+    """The vote's settings (no defaults here: they are MapperConfig's; see outvoted_touches).
+
+    radius 0 switches the vote off; support_radius None means `radius`; press_gap 0 makes
+    every touch a press of its own.
+    """
+
+    radius: float
+    min_neighbours: int
+    min_agreement: float
+    min_support: int
+    press_gap: int
+    support_radius: float | None
+
+    @classmethod
+    def from_config(cls, config: MapperConfig) -> LabelVote:
+        return cls(
+            radius=float(config.label_vote_radius),
+            min_neighbours=int(config.label_vote_min_neighbours),
+            min_agreement=float(config.label_vote_min_agreement),
+            min_support=int(config.label_vote_min_support),
+            press_gap=int(config.label_vote_press_gap),
+            support_radius=(
+                None
+                if config.label_vote_support_radius is None
+                else float(config.label_vote_support_radius)
+            ),
+        )
+
+    @property
+    def active(self) -> bool:
+        return self.radius > 0.0
+
+    def outvoted(
+        self,
+        centroids: torch.Tensor,
+        labels: torch.Tensor,
+        fingers: list[str | None],
+        frames: list[int],
+    ) -> torch.Tensor:
+        """(T,) bool over labelled touches (centroids (T, 3), labels (T,), in frame order)."""
+        events = press_events(fingers, frames, self.press_gap).to(labels.device)
+        return outvoted_touches(
+            centroids,
+            labels,
+            self.radius,
+            self.min_neighbours,
+            self.min_agreement,
+            self.min_support,
+            events,
+            self.support_radius,
+        )
+
+
+def _neighbour_counts(
+    distances: torch.Tensor, labels: torch.Tensor, radius: float, events: torch.Tensor | None
+) -> tuple[torch.Tensor, torch.Tensor]:
+    """(T,) other touches (presses, with `events`) within `radius`, and those that agree.
+
+    `distances` (T, T) between the touches' centroids.
+    """
+    near = distances < radius
+    near.fill_diagonal_(False)
+    agreeing = near & (labels[None, :] == labels[:, None])
+    if events is None:
+        return near.sum(1), agreeing.sum(1)
+    near &= events[None, :] != events[:, None]
+    agreeing &= near
+    # (T, K) one-hot press membership: count the presses a touch sees, not their frames.
+    _, press = torch.unique(events, return_inverse=True)
+    members = torch.nn.functional.one_hot(press).to(distances.dtype)
+    neighbours = ((near.to(distances.dtype) @ members) > 0).sum(1)
+    return neighbours, ((agreeing.to(distances.dtype) @ members) > 0).sum(1)
+
+
+def outvoted_touches(
+    centroids: torch.Tensor,
+    labels: torch.Tensor,
+    radius: float,
+    min_neighbours: int,
+    min_agreement: float,
+    min_support: int = 0,
+    events: torch.Tensor | None = None,
+    support_radius: float | None = None,
+) -> torch.Tensor:
+    """(T,) bool: labelled touches that their labelled neighbours contradict or do not back.
+
+    A touch is outvoted when at least `min_neighbours` other touches lie within `radius`
+    (centroid distance) and fewer than `min_agreement` of them carry its label: one
+    confident misclassification among many consistent touches would otherwise paint its
+    own patch. A touch with few neighbours, e.g. on a small patch of another material
+    with touches of its own, is kept, unless fewer than `min_support` touches within
+    `support_radius` (default `radius`) carry its label: a lone wrong touch where nobody
+    else touched paints the largest patch.
+
+    `events` (T,) groups touches into presses (see `press_events`): neighbours and
+    agreeing neighbours are then counted as other presses, not frames. The frames of one
+    press repeat one imprint, and a misclassified imprint is usually misclassified in all
+    of them, so they must not back each other. None: every touch is its own press.
+    """
+    if centroids.ndim != 2 or centroids.shape[1] != 3 or labels.shape != centroids.shape[:1]:
+        raise ValueError(
+            f"expected (T, 3) centroids and (T,) labels, got {centroids.shape}, {labels.shape}"
+        )
+    if len(labels) == 0 or radius <= 0.0:
+        return torch.zeros(len(labels), dtype=torch.bool, device=labels.device)
+    if events is not None and events.shape != labels.shape:
+        raise ValueError(f"expected (T,) events for {len(labels)} touches, got {events.shape}")
+    distances = torch.cdist(centroids, centroids)
+    neighbours, agree = _neighbour_counts(distances, labels, radius, events)
+    outvoted = (neighbours >= min_neighbours) & (agree < min_agreement * neighbours)
+    if min_support > 0:
+        if support_radius is not None and support_radius != radius:
+            _, agree = _neighbour_counts(distances, labels, support_radius, events)
+        outvoted |= agree < min_support
+    return outvoted
+
+
+def press_events(fingers: list[str | None], frames: list[int], gap: int) -> torch.Tensor:
+    """(T,) press ids: a finger's touches at most `gap` frames after its previous one share it.
+
+    Touches must come in frame order. A touch without a finger (None) is a press of its
+    own, as is every touch when `gap` < 1.
+    """
+    if len(fingers) != len(frames):
+        raise ValueError(f"{len(fingers)} fingers for {len(frames)} frame indices")
+    ids, last = [], {}
+    for finger, frame in zip(fingers, frames):
+        previous = last.get(finger)
+        if (
+            finger is not None
+            and gap >= 1
+            and previous is not None
+            and 0 <= frame - previous[0] <= gap
+        ):
+            ids.append(previous[1])
+        else:
+            ids.append(len(ids))
+        last[finger] = (frame, ids[-1])
+    return torch.tensor(ids, dtype=torch.long)

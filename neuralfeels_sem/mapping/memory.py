@@ -1,0 +1,141 @@
+"""What the mapper has seen: camera keyframes, every touch, and the space-carving record.
+
+`MapMemory.add` stores one frame's object-frame points: a random subset of the camera's
+(`camera_points_per_frame`) becomes a keyframe with the camera centre, each finger's
+contact patch becomes a touch of exactly `tactile_points_per_touch` points with the
+sensor axis and its label when the classifier's label is usable, and, with the space
+prior on, the camera's rays carve free space and the kept points grow the hull.
+"""
+
+from __future__ import annotations
+
+from collections.abc import Mapping
+from typing import TYPE_CHECKING
+
+import numpy as np
+import torch
+
+from neuralfeels_sem.mapping.keyframes import KeyframeBuffer
+from neuralfeels_sem.mapping.label_vote import LabelVote
+from neuralfeels_sem.mapping.sampling import subsample
+from neuralfeels_sem.mapping.space_prior import SpaceCarvingPrior
+from neuralfeels_sem.mapping.touch_memory import TouchBuffer
+from neuralfeels_sem.perception.pointcloud import sensor_origin_and_axis
+from neuralfeels_sem.perception.touch import TouchLabel
+from neuralfeels_sem.sensors.frame import Frame
+
+if TYPE_CHECKING:
+    from neuralfeels_sem.mapping.mapper import MapperConfig
+
+
+class MapMemory:
+    """Keyframes (windowed), touches (all replayed) and the space prior (None when off)."""
+
+    def __init__(
+        self,
+        config: MapperConfig,
+        bound: float,
+        center: np.ndarray,
+        generator: torch.Generator,
+        device: torch.device,
+    ) -> None:
+        """`bound`, `center`: the field's cube (the space prior's grid covers it)."""
+        self.camera_points_per_frame = config.camera_points_per_frame
+        self.tactile_points_per_touch = config.tactile_points_per_touch
+        self.truncation = float(config.truncation)
+        self.generator = generator  # the mapper's: subsets are repeatable and resumable
+        self.device = device
+        self.keyframes = KeyframeBuffer(
+            config.max_keyframes, config.window_recent, config.window_by_loss
+        )
+        self.touches = TouchBuffer(device, LabelVote.from_config(config))
+        self.space_prior = (
+            SpaceCarvingPrior(
+                float(bound), center, resolution=config.space_prior_resolution, seed=config.seed
+            )
+            if config.space_prior_points > 0
+            else None
+        )
+
+    @property
+    def has_data(self) -> bool:
+        return len(self.keyframes) > 0 or self.touches.num_touches > 0
+
+    def _tensor(self, array: np.ndarray) -> torch.Tensor:
+        return torch.as_tensor(np.asarray(array, dtype=np.float32), device=self.device)
+
+    def add(
+        self,
+        frame: Frame,
+        points: dict[str, np.ndarray],
+        every_pixel: np.ndarray | None,
+        world_T_object: np.ndarray,
+        touch_labels: Mapping[str, TouchLabel],
+    ) -> tuple[int, int]:
+        """Store one frame's points (PointExtractor.extract); (camera, tactile) points kept."""
+        kept = {"camera": 0, "tactile": 0}
+        for source, pts in points.items():
+            if source == "camera":
+                kept["camera"] += self._add_camera(frame, pts, every_pixel, world_T_object)
+            else:
+                label = touch_labels.get(source)
+                kept["tactile"] += self._add_touch(frame, source, pts, world_T_object, label)
+        if self.space_prior is not None:
+            self.space_prior.update_hull()
+        return kept["camera"], kept["tactile"]
+
+    def _add_camera(
+        self, frame: Frame, pts: np.ndarray, every_pixel: np.ndarray | None, pose: np.ndarray
+    ) -> int:
+        keep = subsample(
+            len(pts), self.camera_points_per_frame, self.generator, replace_if_short=False
+        )
+        origin, _ = sensor_origin_and_axis(frame.camera.world_T_camera, pose)
+        self.keyframes.add(self._tensor(pts[keep.numpy()]), self._tensor(origin), frame.index)
+        if self.space_prior is not None:
+            # Every pixel's ray, hand and background included, crosses free space.
+            self.space_prior.carve(origin, every_pixel, self.truncation)
+            self.space_prior.add_surface(pts[keep.numpy()])
+        return len(keep)
+
+    def _add_touch(
+        self,
+        frame: Frame,
+        finger: str,
+        pts: np.ndarray,
+        pose: np.ndarray,
+        label: TouchLabel | None,
+    ) -> int:
+        keep = subsample(
+            len(pts), self.tactile_points_per_touch, self.generator, replace_if_short=True
+        )
+        _, axis = sensor_origin_and_axis(frame.tactile[finger].world_T_sensor, pose)
+        if self.space_prior is not None:
+            self.space_prior.add_surface(pts[keep.numpy()])
+        usable = label is not None and label.usable
+        self.touches.add(
+            self._tensor(pts[keep.numpy()]),
+            self._tensor(axis),
+            label.label if usable else -1,
+            label.confidence if usable else 0.0,
+            finger=finger,
+            frame_index=frame.index,
+        )
+        return len(keep)
+
+    def update_keyframe_losses(self, keyframe_ids: list[int], losses: list[float]) -> None:
+        self.keyframes.update_losses(keyframe_ids, losses)
+
+    # ------------------------------------------------------------------ state
+    def state_dict(self) -> dict:
+        return {
+            "keyframes": self.keyframes.state_dict(),
+            "touches": self.touches.state_dict(),
+            "space_prior": self.space_prior.state_dict() if self.space_prior is not None else {},
+        }
+
+    def load_state_dict(self, state: dict) -> None:
+        self.keyframes.load_state_dict(state["keyframes"], self.device)
+        self.touches.load_state_dict(state["touches"])
+        if self.space_prior is not None and state.get("space_prior"):
+            self.space_prior.load_state_dict(state["space_prior"])

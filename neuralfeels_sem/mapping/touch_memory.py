@@ -1,0 +1,140 @@
+"""What the mapper remembers of touch: every touch, replayed for the whole run.
+
+Touches are sparse and carry the material labels, so every touch is kept (object-frame
+points, float32 on the mapper's device). The label vote (label_vote.py) decides which
+labelled touches the material loss uses.
+"""
+
+from __future__ import annotations
+
+import torch
+
+from neuralfeels_sem.mapping.keyframes import check_points
+from neuralfeels_sem.mapping.label_vote import LabelVote
+
+
+class TouchBuffer:
+    """Every touch: a fixed number of contact points each, the sensor axis, label and weight.
+
+    Each touch stores exactly `points_per_touch` points (drawn with replacement when the
+    contact patch has fewer pixels), so uniform sampling over points is uniform over touches.
+    """
+
+    def __init__(self, device: torch.device, vote: LabelVote | None = None) -> None:
+        """`vote`: which labelled touches to leave out of the material loss (None: none)."""
+        self.device = device
+        self.vote = vote
+        self._num_outvoted = 0  # set with the cached tensors; read through num_outvoted
+        self._points: list[torch.Tensor] = []
+        self._axes: list[torch.Tensor] = []
+        self._labels: list[torch.Tensor] = []
+        self._weights: list[torch.Tensor] = []
+        self._fingers: list[str | None] = []  # which finger made each touch (None: unknown)
+        self._frames: list[int] = []  # frame index of each touch
+        self._cat: dict[str, torch.Tensor] | None = None
+        self.num_touches = 0
+        self.num_labelled = 0
+
+    def add(
+        self,
+        points: torch.Tensor,
+        axis: torch.Tensor,
+        label: int,
+        weight: float,
+        finger: str | None = None,
+        frame_index: int = -1,
+    ) -> None:
+        """`label` -1 keeps the touch for geometry only; `finger` and `frame_index` tell
+        the vote which touches are frames of one press (None: a press of its own)."""
+        check_points(points, "touch points")
+        n = points.shape[0]
+        self._fingers.append(finger)
+        self._frames.append(int(frame_index))
+        self._points.append(points)
+        self._axes.append(axis.reshape(1, 3).expand(n, 3).clone())
+        self._labels.append(torch.full((n,), int(label), dtype=torch.long, device=points.device))
+        self._weights.append(
+            torch.full((n,), float(weight), dtype=torch.float32, device=points.device)
+        )
+        self.num_touches += 1
+        self.num_labelled += int(label >= 0)
+        self._cat = None
+
+    def tensors(self) -> dict[str, torch.Tensor]:
+        """All touches concatenated: points, axes, labels, weights, and the labelled subset."""
+        if self._cat is None:
+            if self._points:
+                cat = {
+                    "points": torch.cat(self._points),
+                    "axes": torch.cat(self._axes),
+                    "labels": torch.cat(self._labels),
+                    "weights": torch.cat(self._weights),
+                }
+            else:
+                empty3 = torch.zeros(0, 3, device=self.device)
+                cat = {
+                    "points": empty3,
+                    "axes": empty3,
+                    "labels": torch.zeros(0, dtype=torch.long, device=self.device),
+                    "weights": torch.zeros(0, device=self.device),
+                }
+            labelled = cat["labels"] >= 0
+            self._num_outvoted = 0
+            if self.vote is not None and self.vote.active and self.num_labelled > 0:
+                labelled = labelled & ~self._outvoted_points()
+            cat["labelled_points"] = cat["points"][labelled]
+            cat["labelled_labels"] = cat["labels"][labelled]
+            cat["labelled_weights"] = cat["weights"][labelled]
+            self._cat = cat
+        return self._cat
+
+    def _outvoted_points(self) -> torch.Tensor:
+        """Per stored point: does its touch get outvoted by its labelled neighbours?"""
+        labels = torch.stack([t[0] for t in self._labels])
+        centroids = torch.stack([p.mean(0) for p in self._points])
+        mine = labels >= 0
+        kept = torch.nonzero(mine).flatten().tolist()
+        outvoted = torch.zeros(len(labels), dtype=torch.bool, device=labels.device)
+        outvoted[mine] = self.vote.outvoted(
+            centroids[mine],
+            labels[mine],
+            [self._fingers[i] for i in kept],
+            [self._frames[i] for i in kept],
+        )
+        self._num_outvoted = int(outvoted.sum())
+        sizes = torch.tensor([len(p) for p in self._points], device=labels.device)
+        return torch.repeat_interleave(outvoted, sizes)
+
+    @property
+    def num_outvoted(self) -> int:
+        """Labelled touches left out of the material loss by the vote, as of the latest touch."""
+        self.tensors()
+        return self._num_outvoted
+
+    @property
+    def num_points(self) -> int:
+        return sum(int(p.shape[0]) for p in self._points)
+
+    def state_dict(self) -> dict:
+        return {
+            "points": list(self._points),
+            "axes": list(self._axes),
+            "labels": list(self._labels),
+            "weights": list(self._weights),
+            "fingers": list(self._fingers),
+            "frames": list(self._frames),
+            "num_touches": self.num_touches,
+            "num_labelled": self.num_labelled,
+        }
+
+    def load_state_dict(self, state: dict) -> None:
+        self._points = [t.to(self.device) for t in state["points"]]
+        self._axes = [t.to(self.device) for t in state["axes"]]
+        self._labels = [t.to(self.device) for t in state["labels"]]
+        self._weights = [t.to(self.device) for t in state["weights"]]
+        # Checkpoints from before presses were recorded: every touch a press of its own.
+        self._fingers = list(state.get("fingers", [None] * len(self._points)))
+        self._frames = [int(f) for f in state.get("frames", [-1] * len(self._points))]
+        self.num_touches = int(state["num_touches"])
+        self.num_labelled = int(state["num_labelled"])
+        self._cat = None
