@@ -16,13 +16,14 @@ from pathlib import Path
 import numpy as np
 import torch
 
+from neuralfeels_sem.materials import DEFAULT_MATERIALS
 from neuralfeels_sem.perception.classifier import SHIPPED_CHECKPOINT, MaterialClassifier
 from neuralfeels_sem.perception.classifier.checkpoint import load_checkpoint, save_checkpoint
 from neuralfeels_sem.perception.classifier.model import build_model
 from neuralfeels_sem.perception.classifier.transforms import IMAGENET_MEAN, IMAGENET_STD
 from neuralfeels_sem.perception.contact import ContactGate
 
-CLASSES = ["plastic", "metal", "fabric", "wood"]
+CLASSES = list(DEFAULT_MATERIALS)
 BATCH = 4
 
 

@@ -16,10 +16,11 @@ from neuralfeels_sem.configs.eval import EvalConfig
 from neuralfeels_sem.eval.image_matching import ImageMatcher
 from neuralfeels_sem.eval.matching import MatchingEvaluator
 from neuralfeels_sem.eval.shape import shape_metrics
+from neuralfeels_sem.materials import DEFAULT_MATERIALS
 from neuralfeels_sem.objects.library import make_object
 from neuralfeels_sem.viz.plots import plot_matching_curve, plot_material_maps
 
-CLASSES = ("plastic", "metal", "fabric", "wood")
+CLASSES = tuple(DEFAULT_MATERIALS)
 
 
 def _timed(fn, repeats: int = 1) -> tuple[float, object]:

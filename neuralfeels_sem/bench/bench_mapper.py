@@ -1,8 +1,9 @@
 """Online mapper speed at the CPU default config: optimiser steps/s and add_frame frames/s.
 
-The field, optimiser and mapper use the schema defaults (conf/model/semantic_sdf.yaml,
-conf/mapping/online.yaml: 2^19 sparse hash table, FieldAdam, 288 camera + 96 tactile rays
-x 10 samples + 256 material points = 4096 points per step). Data: the analytic sphere scene
+The field, optimiser and mapper use the config dataclass defaults, i.e. the command line's
+(SemanticFieldConfig, OptimizerConfig, MapperConfig: 2^19 sparse hash table, FieldAdam, 288
+camera + 96 tactile rays x 10 samples + up to 512 space-prior + 256 material points per
+step; warm-up off). Data: the analytic sphere scene
 (mapping/sphere_scene.py), one 96x72 camera view and four DIGIT touches per frame.
 """
 

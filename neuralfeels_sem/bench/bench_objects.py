@@ -6,6 +6,7 @@ import time
 
 import numpy as np
 
+from neuralfeels_sem.materials import DEFAULT_MATERIALS
 from neuralfeels_sem.objects import disk_cache
 from neuralfeels_sem.objects.custom import load_custom_object
 from neuralfeels_sem.objects.example_files import EXAMPLES_DIR
@@ -13,7 +14,7 @@ from neuralfeels_sem.objects.library import build_arrays, make_object
 from neuralfeels_sem.objects.procedural import RECIPES
 from neuralfeels_sem.utils.paths import SHARED_DATA_DIR
 
-CLASSES = ("plastic", "metal", "fabric", "wood")
+CLASSES = tuple(DEFAULT_MATERIALS)
 
 
 def _timed(fn, *args, **kwargs) -> tuple[object, float]:

@@ -17,10 +17,11 @@ import torch
 from neuralfeels_sem.mapping.known_shape import GridSdf, mesh_sdf_grid
 from neuralfeels_sem.mapping.pose_source import average_3d_error
 from neuralfeels_sem.mapping.pose_tracker import PoseTracker, TrackerConfig, se3_exp
+from neuralfeels_sem.materials import DEFAULT_MATERIALS
 from neuralfeels_sem.objects.library import make_object
 from neuralfeels_sem.utils.geometry import transform_points
 
-CLASSES = ("plastic", "metal", "fabric", "wood")
+CLASSES = tuple(DEFAULT_MATERIALS)
 REPEATS = 5
 
 

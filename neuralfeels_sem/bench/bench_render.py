@@ -14,6 +14,7 @@ import time
 import numpy as np
 import trimesh
 
+from neuralfeels_sem.materials import DEFAULT_MATERIALS
 from neuralfeels_sem.objects.material_object import MaterialObject
 from neuralfeels_sem.sim.camera_renderer import CameraRenderer, front_left_camera_pose
 from neuralfeels_sem.sim.tactile_renderer import DigitRenderer, pose_pressing
@@ -24,7 +25,7 @@ REPEATS = 30
 def _object() -> MaterialObject:
     mesh = trimesh.creation.icosphere(subdivisions=5, radius=0.03)
     labels = (mesh.triangles_center[:, 0] > 0).astype(int) * 2  # plastic | fabric
-    return MaterialObject("bench_sphere", mesh, labels, ("plastic", "metal", "fabric", "wood"))
+    return MaterialObject("bench_sphere", mesh, labels, tuple(DEFAULT_MATERIALS))
 
 
 def _ms(fn, repeats: int = REPEATS) -> tuple[float, float]:

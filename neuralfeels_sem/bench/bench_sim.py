@@ -9,11 +9,12 @@ import time
 
 import numpy as np
 
+from neuralfeels_sem.materials import DEFAULT_MATERIALS
 from neuralfeels_sem.objects.library import make_object
 from neuralfeels_sem.sensors.frame import FINGERS
 from neuralfeels_sem.sensors.sim import SimSensor
 
-CLASSES = ["plastic", "metal", "fabric", "wood"]
+CLASSES = list(DEFAULT_MATERIALS)
 
 
 def _rate(count: int, seconds: float) -> float:

@@ -29,6 +29,7 @@ import numpy as np
 from tqdm import tqdm
 
 from neuralfeels_sem.configs.sensor_sim import SimSensorConfig
+from neuralfeels_sem.materials import DEFAULT_MATERIALS
 from neuralfeels_sem.objects.library import make_object
 from neuralfeels_sem.objects.procedural import RECIPES
 from neuralfeels_sem.perception.contact import ContactGate, edge_share
@@ -36,7 +37,7 @@ from neuralfeels_sem.sensors.frame import FINGERS
 from neuralfeels_sem.sensors.sim.sim_sensor import finger_seed
 from neuralfeels_sem.sim.rig import SimRig
 
-CLASSES = ("plastic", "metal", "fabric", "wood")
+CLASSES = tuple(DEFAULT_MATERIALS)
 EDGE_PX = 16  # the classifier's default edge band
 
 

@@ -26,6 +26,7 @@ import cv2
 import numpy as np
 import pyrender
 
+from neuralfeels_sem.materials import DEFAULT_MATERIALS
 from neuralfeels_sem.objects.material_object import IGNORE, MaterialObject
 from neuralfeels_sem.sensors.frame import DIGIT_HEIGHT, DIGIT_WIDTH
 from neuralfeels_sem.sim.backgrounds import resolve_background
@@ -407,7 +408,7 @@ def pose_pressing_edge(
 
 def contact_sheet(
     path: str | Path,
-    materials: tuple[str, ...] = ("plastic", "metal", "fabric", "wood"),
+    materials: tuple[str, ...] = tuple(DEFAULT_MATERIALS),
     radius_m: float = 0.025,
     press_m: float = 1.0e-3,
     seed: int = 0,
