@@ -1,7 +1,9 @@
 """Structured-config schemas, one module per config group.
 
-Each module defines dataclasses whose `__post_init__` checks ranges, and a
-`register(cs)` function that stores them under `schema/<group>/<name>`. A yaml file
+Each module defines (or, for the model and mapping groups, imports from beside the class
+they configure, e.g. MapperConfig from mapping/mapper.py) dataclasses whose field defaults
+are the only defaults and whose `__post_init__` checks ranges, and a `register(cs)`
+function that stores them under `schema/<group>/<name>`. A yaml file
 in conf/<group>/ extends its schema with `- /schema/<group>/<name>@_here_` in its
 defaults list. Types are checked by OmegaConf while composing; ranges are checked
 by `validate_config` (run.py calls it before the task).
