@@ -8,7 +8,7 @@ flag and press depth, the share of the surface within 1 cm of a touched point, t
 closest approach between geoms of different fingers (DIGIT bodies and links; negative =
 overlap), the closest approach of gel centres and the worst joint-limit violation.
 
-    python -m neuralfeels_sem.bench.finger_contacts                      # all 7 objects
+    python -m neuralfeels_sem.bench.finger_contacts                      # every shipped object
     python -m neuralfeels_sem.bench.finger_contacts --objects candle_holder --duration 5
 
 Not a bench_* module, so `make bench` does not run it (about half a minute per object).

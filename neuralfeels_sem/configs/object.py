@@ -18,6 +18,19 @@ SHIPPED_OBJECTS = (
     "candle_holder",
     "powder_shaker",
     "plastic_toy",
+    "patchwork",
+    "kitchen_tool",
+)
+# The objects whose touches are in the shipped classifier's training data (the default of
+# task=collect_tactile's library_objects): patchwork and kitchen_tool, added later, are not.
+TACTILE_DATA_OBJECTS = (
+    "plushie",
+    "patched_toy",
+    "fabric_toy",
+    "yarn_ball",
+    "candle_holder",
+    "powder_shaker",
+    "plastic_toy",
 )
 
 

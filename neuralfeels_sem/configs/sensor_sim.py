@@ -4,7 +4,7 @@ from __future__ import annotations
 
 from dataclasses import dataclass, field
 
-from neuralfeels_sem.configs.object import SHIPPED_OBJECTS
+from neuralfeels_sem.configs.object import TACTILE_DATA_OBJECTS
 from neuralfeels_sem.sensors.frame import FINGERS
 from neuralfeels_sem.sim.digit_geometry import MAX_PENETRATION_M
 
@@ -124,7 +124,7 @@ class CollectTactileTaskConfig:
     samples_per_class_per_sensor: int = 300
     sensors: list[str] = field(default_factory=lambda: list(FINGERS))
     # Shipped objects whose regions add real-shaped touches of their materials (besides primitives).
-    library_objects: list[str] = field(default_factory=lambda: list(SHIPPED_OBJECTS))
+    library_objects: list[str] = field(default_factory=lambda: list(TACTILE_DATA_OBJECTS))
     firmness_mm: dict[str, float] = field(
         default_factory=lambda: {"index": 1.5, "middle": 1.5, "ring": 1.5, "thumb": 0.7}
     )

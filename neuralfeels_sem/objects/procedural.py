@@ -41,6 +41,28 @@ def _inflate(f: S.SDF, by: float) -> S.SDF:
     return lambda p: f(p) - by
 
 
+def _surface_point(shape: S.SDF, direction: tuple[float, float, float]) -> tuple:
+    """Where the ray from the origin (inside `shape`) along `direction` leaves the surface."""
+    d = np.asarray(direction, dtype=np.float64)
+    d /= np.linalg.norm(d)
+    inside, outside = 0.0, 0.2
+    for _ in range(50):  # bisection to well under a micrometre
+        mid = 0.5 * (inside + outside)
+        if shape((mid * d)[None])[0] < 0:
+            inside = mid
+        else:
+            outside = mid
+    return tuple(inside * d)
+
+
+def _laid_along_y(f: S.SDF) -> S.SDF:
+    """An upright shape (long axis z) laid down with its long axis along y, its x up.
+
+    Upright (x, y, z) = laid (z, x, y): so the rounded cylinders round z serve lying parts.
+    """
+    return lambda p: f(p[:, [2, 0, 1]])
+
+
 def _on_sphere(center: np.ndarray, radius: float, direction: tuple[float, float, float]) -> tuple:
     d = np.asarray(direction, dtype=np.float64)
     return tuple(center + radius * d / np.linalg.norm(d))
@@ -240,6 +262,89 @@ def powder_shaker() -> Recipe:
     )
 
 
+def patchwork() -> Recipe:
+    """A pebble quilted from all four materials in patches of different sizes.
+
+    Plastic (the base) is left in two pieces between the patches: wood round the back
+    left, fabric over the top, metal on the front right and a small metal badge on the
+    front left that one DIGIT press covers. The patches sit where the rig's fingers reach
+    as it turns the pebble about both of its default axes.
+    """
+    z_bottom = -0.025
+    body = S.smooth_union(
+        [
+            S.ellipsoid((0.0, 0.0, 0.0), (0.046, 0.036, 0.030)),
+            S.ellipsoid((0.010, 0.004, 0.010), (0.030, 0.028, 0.026)),  # a hump, front top
+        ],
+        k=0.01,
+    )
+    shape = S.smooth_intersection(body, S.half_space_above(z_bottom), k=0.003)
+    # Each patch is a ball centred on the surface: it cuts a roundish patch out of it.
+    # The badge: 1.4 x 2 cm inside its seam (2 cm^2), within one press of the 1.8 x 2.4 cm gel.
+    badge = S.ellipsoid(_surface_point(shape, (1.0, -0.5, 0.05)), (0.008, 0.008, 0.011))
+    regions = [
+        Region(S.sphere(_surface_point(shape, (-1.0, -0.8, -0.1)), 0.040), "wood"),
+        Region(S.sphere(_surface_point(shape, (-0.2, 0.5, 1.0)), 0.036), "fabric"),
+        Region(S.sphere(_surface_point(shape, (0.6, 1.0, -0.1)), 0.030), "metal"),
+        Region(badge, "metal"),
+        _bottom(z_bottom),
+    ]
+    return Recipe(
+        "patchwork",
+        "pebble quilted from plastic, wood, fabric and metal patches (one a 2 cm^2 badge), 9 cm",
+        shape,
+        (-0.05, -0.04, -0.03),
+        (0.05, 0.04, 0.045),
+        "plastic",
+        regions,
+    )
+
+
+def kitchen_tool() -> Recipe:
+    """A spoon-like kitchen tool lying along y: wooden handle, plastic grip band, metal head.
+
+    Built upright (handle end at z = 0, head up) and laid down along y, the head towards
+    +y. Handle and head are cut flat underneath where the tool rests (ignored). A chunky
+    3 cm handle, 3.4 cm at the grip band, gives the fingertips room. 13.7 cm long: lying
+    down it turns in the hand about both default axes with every material in reach
+    (upright, only the middle band was touched while it turned about z).
+    """
+    handle_r, head_z = 0.015, 0.104
+    head = (0.012, 0.023, 0.028)  # half thickness, half width, half length
+    grip = (0.028, 0.055)  # along the handle from its end
+    upright = S.smooth_union(
+        [
+            S.rounded_cylinder(0.0, 0.02, handle_r, 0.003),  # flat handle end
+            S.capsule((0.0, 0.0, 0.01), (0.0, 0.0, head_z - 0.02), handle_r),
+            S.rounded_cylinder(grip[0], grip[1], 0.017, 0.003),  # raised grip band
+            # The head hangs 3 mm lower than the handle so both rest on the table.
+            S.ellipsoid((-0.003, 0.0, head_z), head),
+        ],
+        k=0.006,
+    )
+    handle_end = -0.068  # y of the handle's end: centres the tool along y
+    lift = np.array([0.0, 0.0, -handle_end])
+    tool = _laid_along_y(lambda p: upright(p + lift))
+    z_bottom = -0.0145
+    shape = S.smooth_intersection(tool, S.half_space_above(z_bottom), k=0.002)
+    band = S.rounded_cylinder(grip[0] - 0.002, grip[1] + 0.002, 0.05, 0.001)
+    head_start = handle_end + head_z - head[2] + 0.004  # the wooden neck ends just inside the head
+    regions = [
+        Region(_laid_along_y(lambda p: band(p + lift)), "plastic"),
+        Region(lambda p: head_start - p[:, 1], "metal"),
+        _bottom(z_bottom),
+    ]
+    return Recipe(
+        "kitchen_tool",
+        "spoon-like kitchen tool lying along y: wooden handle, plastic grip band, metal head, 13.7 cm",
+        shape,
+        (-0.03, handle_end - 0.005, z_bottom - 0.003),
+        (0.03, handle_end + head_z + head[2] + 0.01, 0.025),
+        "wood",
+        regions,
+    )
+
+
 RECIPES: dict[str, Callable[[], Recipe]] = {
     "plushie": plushie,
     "patched_toy": patched_toy,
@@ -248,4 +353,6 @@ RECIPES: dict[str, Callable[[], Recipe]] = {
     "candle_holder": candle_holder,
     "powder_shaker": powder_shaker,
     "plastic_toy": plastic_toy,
+    "patchwork": patchwork,
+    "kitchen_tool": kitchen_tool,
 }

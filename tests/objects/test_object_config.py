@@ -5,9 +5,11 @@ from __future__ import annotations
 import pytest
 from hydra.errors import InstantiationException
 from hydra.utils import instantiate
+from omegaconf import OmegaConf
 
 from neuralfeels_sem.configs import validate_config
-from neuralfeels_sem.configs.object import SHIPPED_OBJECTS
+from neuralfeels_sem.configs.object import SHIPPED_OBJECTS, TACTILE_DATA_OBJECTS
+from neuralfeels_sem.configs.sensor_sim import CollectTactileTaskConfig
 from neuralfeels_sem.errors import ConfigError
 from neuralfeels_sem.objects.material_object import MaterialObject
 from tests.helpers import CONF_DIR, compose_config, run_cli
@@ -98,3 +100,13 @@ def test_shipped_objects_have_no_marker_layout_and_a_layout_still_instantiates()
     validate_config(cfg)
     assert [m.id for m in cfg.object.aruco.markers] == [3, 7]
     assert isinstance(instantiate(cfg.object), MaterialObject)  # the mesh ignores the layout
+
+
+def test_tactile_data_objects_exclude_the_later_objects() -> None:
+    # The shipped classifier was trained on touches of these seven; objects added since
+    # (patchwork, kitchen_tool) must not change task=collect_tactile's data set.
+    task = OmegaConf.load(CONF_DIR / "task" / "collect_tactile.yaml")
+    assert list(task.library_objects) == list(TACTILE_DATA_OBJECTS)
+    assert CollectTactileTaskConfig().library_objects == list(TACTILE_DATA_OBJECTS)
+    assert set(TACTILE_DATA_OBJECTS) < set(SHIPPED_OBJECTS)
+    assert {"patchwork", "kitchen_tool"}.isdisjoint(TACTILE_DATA_OBJECTS)
