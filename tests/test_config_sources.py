@@ -15,12 +15,12 @@ from omegaconf import OmegaConf
 
 from neuralfeels_sem.configs import to_config
 from neuralfeels_sem.configs.mapping import MappingConfig
+from neuralfeels_sem.core.materials import DEFAULT_MATERIALS
 from neuralfeels_sem.fields.hash_grid import HashGridConfig, HashGridEncoding
 from neuralfeels_sem.fields.optim import FieldAdam, OptimizerConfig
 from neuralfeels_sem.fields.semantic_field import SemanticField, SemanticFieldConfig
 from neuralfeels_sem.mapping.mapper import MapperConfig, OnlineMapper
 from neuralfeels_sem.mapping.pose_tracker import PoseTracker, TrackerConfig
-from neuralfeels_sem.materials import DEFAULT_MATERIALS
 from neuralfeels_sem.perception.tactile_depth import TactileDepth, TactileDepthConfig
 from neuralfeels_sem.utils.paths import REPO_DIR
 from tests.helpers import CONF_DIR, compose_config

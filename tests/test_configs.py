@@ -10,7 +10,7 @@ from hydra.utils import get_method, instantiate
 from omegaconf import DictConfig, OmegaConf
 
 from neuralfeels_sem.configs import validate_config
-from neuralfeels_sem.errors import ConfigError
+from neuralfeels_sem.core.errors import ConfigError
 from tests.helpers import CONF_DIR, compose_config, run_cli
 
 GROUPS = (
@@ -137,7 +137,7 @@ def test_cli_help_and_cfg_job() -> None:
 
 
 def test_the_default_sim_motion_is_the_one_bench_and_rig_touches_use() -> None:
-    # bench/finger_contacts and sim/rig_touches build the rig from SimSensorConfig's defaults;
+    # bench/finger_contacts and bench/rig_touches build the rig from SimSensorConfig's defaults;
     # they must move the object as `sensor=sim` does.
     from neuralfeels_sem.configs.sensor_sim import SimSensorConfig
     from neuralfeels_sem.sim.rig import SimRig

@@ -16,7 +16,7 @@ from pathlib import Path
 import numpy as np
 import torch
 
-from neuralfeels_sem.materials import DEFAULT_MATERIALS
+from neuralfeels_sem.core.materials import DEFAULT_MATERIALS
 from neuralfeels_sem.perception.classifier import SHIPPED_CHECKPOINT, MaterialClassifier
 from neuralfeels_sem.perception.classifier.checkpoint import load_checkpoint, save_checkpoint
 from neuralfeels_sem.perception.classifier.model import build_model

@@ -13,10 +13,10 @@ from pathlib import Path
 import numpy as np
 
 from neuralfeels_sem.configs.eval import EvalConfig
+from neuralfeels_sem.core.materials import DEFAULT_MATERIALS
 from neuralfeels_sem.eval.image_matching import ImageMatcher
 from neuralfeels_sem.eval.matching import MatchingEvaluator
 from neuralfeels_sem.eval.shape import shape_metrics
-from neuralfeels_sem.materials import DEFAULT_MATERIALS
 from neuralfeels_sem.objects.library import make_object
 from neuralfeels_sem.viz.plots import plot_matching_curve, plot_material_maps
 

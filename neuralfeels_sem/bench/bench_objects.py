@@ -6,7 +6,7 @@ import time
 
 import numpy as np
 
-from neuralfeels_sem.materials import DEFAULT_MATERIALS
+from neuralfeels_sem.core.materials import DEFAULT_MATERIALS
 from neuralfeels_sem.objects import disk_cache
 from neuralfeels_sem.objects.custom import load_custom_object
 from neuralfeels_sem.objects.example_files import EXAMPLES_DIR

@@ -12,11 +12,12 @@ from pathlib import Path
 
 import numpy as np
 
-from neuralfeels_sem.sensors.frame import FINGERS, CameraReading, Frame, TactileReading
+from neuralfeels_sem.core.digit import DIGIT_INTRINSICS
+from neuralfeels_sem.core.frame import CameraReading, Frame, TactileReading
+from neuralfeels_sem.core.geometry import Intrinsics
+from neuralfeels_sem.core.hand import FINGERS
 from neuralfeels_sem.sensors.replay.feelsight import export_feelsight
 from neuralfeels_sem.sensors.replay.recording import RecordingReader, RecordingWriter
-from neuralfeels_sem.sim.digit_geometry import DIGIT_INTRINSICS
-from neuralfeels_sem.utils.geometry import Intrinsics
 
 FRAMES = 30
 

@@ -14,7 +14,7 @@ import time
 import numpy as np
 import trimesh
 
-from neuralfeels_sem.materials import DEFAULT_MATERIALS
+from neuralfeels_sem.core.materials import DEFAULT_MATERIALS
 from neuralfeels_sem.objects.material_object import MaterialObject
 from neuralfeels_sem.sim.camera_renderer import CameraRenderer, front_left_camera_pose
 from neuralfeels_sem.sim.tactile_renderer import DigitRenderer, pose_pressing

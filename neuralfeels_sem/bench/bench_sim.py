@@ -9,9 +9,9 @@ import time
 
 import numpy as np
 
-from neuralfeels_sem.materials import DEFAULT_MATERIALS
+from neuralfeels_sem.core.hand import FINGERS
+from neuralfeels_sem.core.materials import DEFAULT_MATERIALS
 from neuralfeels_sem.objects.library import make_object
-from neuralfeels_sem.sensors.frame import FINGERS
 from neuralfeels_sem.sensors.sim import SimSensor
 
 CLASSES = list(DEFAULT_MATERIALS)

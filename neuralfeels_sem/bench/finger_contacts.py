@@ -28,11 +28,11 @@ import numpy as np
 from scipy.spatial import cKDTree
 
 from neuralfeels_sem.configs.sensor_sim import SimSensorConfig
+from neuralfeels_sem.core.digit import GEL_DISTANCE_M
+from neuralfeels_sem.core.hand import FINGERS
 from neuralfeels_sem.objects.library import make_object
 from neuralfeels_sem.objects.material_object import MaterialObject
 from neuralfeels_sem.objects.procedural import RECIPES
-from neuralfeels_sem.sensors.frame import FINGERS
-from neuralfeels_sem.sim.digit_geometry import GEL_DISTANCE_M
 from neuralfeels_sem.sim.rig import SimRig
 
 CLASSES = ("plastic", "metal", "fabric", "wood")

@@ -5,13 +5,13 @@ from __future__ import annotations
 from dataclasses import dataclass, field
 from typing import Any
 
-from neuralfeels_sem.materials import DEFAULT_MATERIALS
+from neuralfeels_sem.core.materials import DEFAULT_MATERIALS
 
 
 @dataclass
 class RootConfig:
     seed: int = 0
-    # The classifier's classes, in its output order (default: neuralfeels_sem/materials.py).
+    # The classifier's classes, in its output order (default: neuralfeels_sem/core/materials.py).
     materials: list[str] = field(default_factory=lambda: list(DEFAULT_MATERIALS))
     device: str = "auto"  # auto | cpu | cuda | cuda:N
     run_dir: Any = None  # an existing run directory, for task=eval

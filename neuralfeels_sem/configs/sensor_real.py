@@ -8,7 +8,7 @@ from __future__ import annotations
 from dataclasses import dataclass, field
 from typing import Any
 
-from neuralfeels_sem.sensors.frame import FINGERS
+from neuralfeels_sem.core.hand import FINGERS
 from neuralfeels_sem.sensors.real.hand_kinematics import kinematics_target
 
 _STREAMS = {"QVGA": (60, 30), "VGA": (30, 15)}

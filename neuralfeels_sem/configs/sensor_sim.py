@@ -5,8 +5,8 @@ from __future__ import annotations
 from dataclasses import dataclass, field
 
 from neuralfeels_sem.configs.object import TACTILE_DATA_OBJECTS
-from neuralfeels_sem.sensors.frame import FINGERS
-from neuralfeels_sem.sim.digit_geometry import MAX_PENETRATION_M
+from neuralfeels_sem.core.digit import MAX_PENETRATION_M
+from neuralfeels_sem.core.hand import FINGERS
 
 
 def _check_firmness(name: str, firmness: dict[str, float]) -> None:

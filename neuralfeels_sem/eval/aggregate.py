@@ -1,11 +1,12 @@
 """End-of-sweep aggregate: one summary.json / summary.csv / summary.png per multirun.
 
-Runs as a Hydra callback in the launching process after every job has finished, so it
-works with every launcher (basic, joblib, submitit, ray). Jobs are grouped by the
-overrides that vary across the sweep, except `seed` (trials of the same setting);
-each numeric metric gets mean and standard deviation per group. The headline is
-mean-class matching beside the majority-material baseline and the margin between them
-(`summary.txt` and the log show it per group; `matching_pct` never stands alone).
+Run by the Hydra callback `tasks/callbacks.py:SweepAggregator` in the launching process
+after every job has finished, so it works with every launcher (basic, joblib, submitit,
+ray). Jobs are grouped by the overrides that vary across the sweep, except `seed` (trials
+of the same setting); each numeric metric gets mean and standard deviation per group. The
+headline is mean-class matching beside the majority-material baseline and the margin
+between them (`summary.txt` and the log show it per group; `matching_pct` never stands
+alone).
 """
 
 from __future__ import annotations
@@ -19,8 +20,6 @@ from pathlib import Path
 from typing import Any
 
 import yaml
-from hydra.experimental.callback import Callback
-from omegaconf import DictConfig
 
 log = logging.getLogger(__name__)
 
@@ -231,31 +230,3 @@ def plot_summary(summary: dict, path: Path) -> None:
     fig.tight_layout()
     fig.savefig(path, dpi=120)
     plt.close(fig)
-
-
-class SweepAggregator(Callback):
-    """Hydra callback: summarize the sweep directory when a multirun ends."""
-
-    def on_multirun_end(self, config: DictConfig, **kwargs: Any) -> None:
-        sweep_dir = Path(config.hydra.sweep.dir)
-        if not sweep_dir.is_dir():
-            return
-        summary = summarize(sweep_dir)
-        log.info(
-            "sweep summary: %s (%d groups)", sweep_dir / "summary.json", len(summary["groups"])
-        )
-        table = headline_table(summary)
-        if table:
-            log.info("mean ± std per setting:\n%s", table)
-        if summary["failed"]:
-            log.error(
-                "%d of %d jobs failed: %s",
-                len(summary["failed"]),
-                len(summary["jobs"]),
-                summary["failed"],
-            )
-        try:
-            from neuralfeels_sem.viz.sweep_plots import plot_experiment
-        except ImportError:
-            return
-        plot_experiment(summary, sweep_dir)

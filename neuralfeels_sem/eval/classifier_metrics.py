@@ -18,9 +18,9 @@ from collections.abc import Sequence
 
 import numpy as np
 
+from neuralfeels_sem.core.frame import TactileReading
 from neuralfeels_sem.objects.material_object import IGNORE
 from neuralfeels_sem.perception.touch import NO_LABEL
-from neuralfeels_sem.sensors.frame import TactileReading
 
 MIN_LABELLED_SHARE = 0.5  # of the contact pixels, for a touch to have a ground truth
 

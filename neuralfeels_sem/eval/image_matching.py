@@ -10,13 +10,13 @@ from __future__ import annotations
 
 import numpy as np
 
-from neuralfeels_sem.errors import NoDataError
+from neuralfeels_sem.core.errors import NoDataError
+from neuralfeels_sem.core.geometry import Intrinsics, backproject, transform_points
+from neuralfeels_sem.core.materials import BACKGROUND
 from neuralfeels_sem.eval.matching import Predictor, predict_labels
+from neuralfeels_sem.eval.mesh_render import DepthRenderer, orbit_views
 from neuralfeels_sem.eval.surface import closest_faces
 from neuralfeels_sem.objects.material_object import IGNORE, MaterialObject
-from neuralfeels_sem.utils.geometry import Intrinsics, backproject, transform_points
-from neuralfeels_sem.viz.mesh_render import DepthRenderer, orbit_views
-from neuralfeels_sem.viz.palette import BACKGROUND
 
 FOV_Y_DEG = 40.0
 # Rendered surface points lie within ~0.2 mm of the mesh (depth-buffer precision); beyond 1 mm

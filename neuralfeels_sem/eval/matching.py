@@ -18,7 +18,7 @@ from collections.abc import Callable
 
 import numpy as np
 
-from neuralfeels_sem.errors import NoDataError
+from neuralfeels_sem.core.errors import NoDataError
 from neuralfeels_sem.objects.material_object import IGNORE, MaterialObject
 
 Predictor = Callable[[np.ndarray], np.ndarray]

@@ -29,7 +29,7 @@ from typing import Any
 
 import yaml
 
-from neuralfeels_sem.errors import DataError, UserError
+from neuralfeels_sem.core.errors import DataError, UserError
 from neuralfeels_sem.eval.aggregate import read_job
 
 COMMAND = "python -m neuralfeels_sem.eval.results_page"

@@ -19,7 +19,9 @@ import numpy as np
 import torch
 from torch import nn
 
-from neuralfeels_sem.errors import NoDataError
+from neuralfeels_sem.core.errors import NoDataError
+from neuralfeels_sem.core.frame import Frame
+from neuralfeels_sem.core.geometry import transform_points
 from neuralfeels_sem.eval.classifier_metrics import ClassifierAccuracy, gt_material_of
 from neuralfeels_sem.eval.image_matching import ImageMatcher
 from neuralfeels_sem.eval.matching import MatchingEvaluator
@@ -29,8 +31,6 @@ from neuralfeels_sem.fields.semantic_field import evaluate_chunked
 from neuralfeels_sem.mapping.mesh import extract_mesh
 from neuralfeels_sem.objects.material_object import MaterialObject
 from neuralfeels_sem.perception.touch import TouchLabel
-from neuralfeels_sem.sensors.frame import Frame
-from neuralfeels_sem.utils.geometry import transform_points
 
 log = logging.getLogger(__name__)
 

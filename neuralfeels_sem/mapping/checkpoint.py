@@ -14,7 +14,7 @@ from pathlib import Path
 
 import torch
 
-from neuralfeels_sem.errors import ConfigError, DataError
+from neuralfeels_sem.core.errors import ConfigError, DataError
 from neuralfeels_sem.mapping.mapper import OnlineMapper
 
 FORMAT_VERSION = 1

@@ -4,9 +4,9 @@ from __future__ import annotations
 
 import numpy as np
 
+from neuralfeels_sem.core.frame import Frame
 from neuralfeels_sem.perception.pointcloud import camera_points, tactile_points
 from neuralfeels_sem.perception.tactile_depth import TactileDepth
-from neuralfeels_sem.sensors.frame import Frame
 
 
 class PointExtractor:

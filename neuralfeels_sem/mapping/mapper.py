@@ -22,17 +22,17 @@ import torch
 from torch import nn
 from tqdm import tqdm
 
-from neuralfeels_sem.errors import ConfigError, NoDataError, NumericalError
+from neuralfeels_sem.core.errors import ConfigError, NoDataError, NumericalError
+from neuralfeels_sem.core.frame import Frame
+from neuralfeels_sem.core.materials import DEFAULT_MATERIALS
 from neuralfeels_sem.mapping.batch import BatchSampler, per_keyframe_losses
 from neuralfeels_sem.mapping.bookkeeping import TrainingLog
 from neuralfeels_sem.mapping.frame_points import PointExtractor
 from neuralfeels_sem.mapping.memory import MapMemory
 from neuralfeels_sem.mapping.objective import TERMS, MapperObjective
 from neuralfeels_sem.mapping.rng_state import capture_rng, restore_rng
-from neuralfeels_sem.materials import DEFAULT_MATERIALS
 from neuralfeels_sem.perception.tactile_depth import TactileDepth, TactileDepthConfig
 from neuralfeels_sem.perception.touch import TouchLabel
-from neuralfeels_sem.sensors.frame import Frame
 
 LOSS_KEYS = ("total", *TERMS, "points")
 

@@ -15,6 +15,7 @@ from typing import TYPE_CHECKING
 import numpy as np
 import torch
 
+from neuralfeels_sem.core.frame import Frame
 from neuralfeels_sem.mapping.keyframes import KeyframeBuffer
 from neuralfeels_sem.mapping.label_vote import LabelVote
 from neuralfeels_sem.mapping.sampling import subsample
@@ -22,7 +23,6 @@ from neuralfeels_sem.mapping.space_prior import SpaceCarvingPrior
 from neuralfeels_sem.mapping.touch_memory import TouchBuffer
 from neuralfeels_sem.perception.pointcloud import sensor_origin_and_axis
 from neuralfeels_sem.perception.touch import TouchLabel
-from neuralfeels_sem.sensors.frame import Frame
 
 if TYPE_CHECKING:
     from neuralfeels_sem.mapping.mapper import MapperConfig

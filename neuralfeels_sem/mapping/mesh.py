@@ -10,8 +10,8 @@ import trimesh
 from skimage.measure import marching_cubes
 from torch import nn
 
-from neuralfeels_sem.errors import NoDataError
-from neuralfeels_sem.viz.palette import class_colours
+from neuralfeels_sem.core.errors import NoDataError
+from neuralfeels_sem.core.palette import class_colours
 
 
 def _device(field: nn.Module) -> torch.device:
@@ -96,7 +96,7 @@ def extract_mesh(
 ) -> trimesh.Trimesh:
     """Zero level set of the field's SDF in the cube center +- bound (object frame, metres).
 
-    Vertex colours come from `palette` (material name -> RGB; viz.palette's colours for names
+    Vertex colours come from `palette` (material name -> RGB; core.palette's colours for names
     it lacks or when None) of
     each vertex's predicted class; the class index is the vertex attribute `label`.
     Raises NoDataError when the SDF does not cross zero inside the cube (an untrained field).

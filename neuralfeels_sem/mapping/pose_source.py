@@ -18,10 +18,10 @@ from typing import Literal, Protocol, get_args
 import numpy as np
 import torch
 
-from neuralfeels_sem.errors import ConfigError
+from neuralfeels_sem.core.errors import ConfigError
+from neuralfeels_sem.core.frame import Frame
+from neuralfeels_sem.core.geometry import check_pose, invert_pose, orthonormalize_pose
 from neuralfeels_sem.mapping.pose_tracker import PoseTracker, TrackerConfig, constant_velocity
-from neuralfeels_sem.sensors.frame import Frame
-from neuralfeels_sem.utils.geometry import check_pose, invert_pose, orthonormalize_pose
 
 log = logging.getLogger(__name__)
 

@@ -20,7 +20,7 @@ import numpy as np
 import torch
 from torch import Tensor
 
-from neuralfeels_sem.utils.geometry import check_pose, invert_pose, orthonormalize_pose
+from neuralfeels_sem.core.geometry import check_pose, invert_pose, orthonormalize_pose
 
 log = logging.getLogger(__name__)
 

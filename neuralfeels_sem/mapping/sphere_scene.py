@@ -10,10 +10,11 @@ from __future__ import annotations
 
 import numpy as np
 
+from neuralfeels_sem.core.digit import DIGIT_INTRINSICS, GEL_DISTANCE_M
+from neuralfeels_sem.core.frame import CameraReading, Frame, TactileReading
+from neuralfeels_sem.core.geometry import Intrinsics, invert_pose, look_at, rotation_matrix
+from neuralfeels_sem.core.hand import FINGERS
 from neuralfeels_sem.perception.touch import TouchLabel
-from neuralfeels_sem.sensors.frame import FINGERS, CameraReading, Frame, TactileReading
-from neuralfeels_sem.sim.digit_geometry import DIGIT_INTRINSICS, GEL_DISTANCE_M
-from neuralfeels_sem.utils.geometry import Intrinsics, invert_pose, look_at, rotation_matrix
 
 RADIUS = 0.04
 

@@ -13,7 +13,7 @@ from pathlib import Path
 import numpy as np
 import trimesh
 
-from neuralfeels_sem.errors import ConfigError, DataError
+from neuralfeels_sem.core.errors import ConfigError, DataError
 from neuralfeels_sem.objects.label_files import read_labels
 from neuralfeels_sem.objects.material_object import MaterialObject
 from neuralfeels_sem.objects.materials import class_index, mass_and_friction

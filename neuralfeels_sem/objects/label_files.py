@@ -14,7 +14,7 @@ from pathlib import Path
 
 import numpy as np
 
-from neuralfeels_sem.errors import ConfigError, DataError
+from neuralfeels_sem.core.errors import ConfigError, DataError
 from neuralfeels_sem.objects.material_object import IGNORE
 from neuralfeels_sem.objects.materials import IGNORE_NAME, names_to_labels
 

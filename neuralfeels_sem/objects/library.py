@@ -14,7 +14,7 @@ from collections.abc import Sequence
 import numpy as np
 import trimesh
 
-from neuralfeels_sem.errors import ConfigError
+from neuralfeels_sem.core.errors import ConfigError
 from neuralfeels_sem.objects import disk_cache
 from neuralfeels_sem.objects.material_object import MaterialObject
 from neuralfeels_sem.objects.materials import mass_and_friction, names_to_labels

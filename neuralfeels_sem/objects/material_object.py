@@ -7,9 +7,8 @@ from dataclasses import dataclass
 import numpy as np
 import trimesh
 
+from neuralfeels_sem.core.materials import IGNORE
 from neuralfeels_sem.objects.proximity import closest_faces
-
-IGNORE = -1  # face label outside the regions of interest (black in the paper's maps)
 
 
 @dataclass

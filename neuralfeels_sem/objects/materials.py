@@ -7,7 +7,7 @@ from dataclasses import dataclass
 
 import numpy as np
 
-from neuralfeels_sem.errors import ConfigError
+from neuralfeels_sem.core.errors import ConfigError
 from neuralfeels_sem.objects.material_object import IGNORE
 
 IGNORE_NAME = "ignore"

@@ -9,8 +9,8 @@ from __future__ import annotations
 
 import numpy as np
 
-from neuralfeels_sem.sensors.frame import CameraReading, TactileReading
-from neuralfeels_sem.utils.geometry import backproject, check_pose, invert_pose, transform_points
+from neuralfeels_sem.core.frame import CameraReading, TactileReading
+from neuralfeels_sem.core.geometry import backproject, check_pose, invert_pose, transform_points
 
 
 def object_T_sensor(world_T_sensor: np.ndarray, world_T_object: np.ndarray) -> np.ndarray:

@@ -24,9 +24,9 @@ from typing import Literal, get_args
 import cv2
 import numpy as np
 
-from neuralfeels_sem.errors import DataError
-from neuralfeels_sem.sensors.frame import TactileReading
-from neuralfeels_sem.sim.digit_geometry import GEL_DISTANCE_M, MAX_PENETRATION_M
+from neuralfeels_sem.core.digit import GEL_DISTANCE_M, MAX_PENETRATION_M
+from neuralfeels_sem.core.errors import DataError
+from neuralfeels_sem.core.frame import TactileReading
 
 TactileDepthSource = Literal["gt", "image"]
 SOURCES = get_args(TactileDepthSource)

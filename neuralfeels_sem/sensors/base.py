@@ -9,7 +9,7 @@ from __future__ import annotations
 from abc import ABC, abstractmethod
 from collections.abc import Iterator
 
-from neuralfeels_sem.sensors.frame import Frame
+from neuralfeels_sem.core.frame import Frame
 
 
 class Sensor(ABC):

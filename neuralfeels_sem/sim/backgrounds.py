@@ -14,10 +14,16 @@ from pathlib import Path
 import cv2
 import numpy as np
 
-from neuralfeels_sem.errors import DataError
-from neuralfeels_sem.sensors.frame import DIGIT_HEIGHT, DIGIT_WIDTH
+from neuralfeels_sem.core.digit import DIGIT_HEIGHT, DIGIT_WIDTH
+from neuralfeels_sem.core.errors import DataError
+from neuralfeels_sem.core.hand import FINGERS
 
 _IMAGE_SUFFIXES = (".png", ".jpg", ".jpeg", ".bmp")
+
+
+def finger_seed(seed: int, finger: str) -> int:
+    """Renderer seed of one finger's DIGIT (its background and noise stream)."""
+    return seed + FINGERS.index(finger)
 
 
 def procedural_background(

@@ -22,15 +22,15 @@ import numpy as np
 import pyrender
 import trimesh
 
+from neuralfeels_sem.core.frame import CameraReading
+from neuralfeels_sem.core.geometry import Intrinsics, check_pose, look_at
 from neuralfeels_sem.objects.material_object import IGNORE, MaterialObject
-from neuralfeels_sem.sensors.frame import CameraReading
 from neuralfeels_sem.sim.pyrender_utils import (
     LazyOffscreen,
     intrinsics_camera,
     opengl_camera_pose,
     split_by_material,
 )
-from neuralfeels_sem.utils.geometry import Intrinsics, check_pose, look_at
 
 # RGB 0..1 per material name; unknown names get a stable colour from their name.
 MATERIAL_PALETTE: dict[str, tuple[float, float, float]] = {

@@ -19,8 +19,8 @@ from dataclasses import dataclass
 
 import numpy as np
 
-from neuralfeels_sem.sensors.frame import FINGERS
-from neuralfeels_sem.sim.digit_geometry import GEL_DISTANCE_M
+from neuralfeels_sem.core.digit import GEL_DISTANCE_M
+from neuralfeels_sem.core.hand import FINGERS
 
 LINK_RADIUS = 0.0098  # Allegro links are 19.6 mm wide
 PALM_CENTRE = (-0.0093, 0.0, -0.0475)
@@ -144,14 +144,6 @@ def _thumb() -> str:
         f"{_joint('thumb_j3', '0 1 0', *lims[3])}{_digit('thumb')}"
         "</body></body></body></body>"
     )
-
-
-def default_world_T_palm() -> np.ndarray:
-    """Palm up (palm +x = world +z), fingers along world +x, 15 cm above the table."""
-    pose = np.eye(4)
-    pose[:3, :3] = np.array([[0.0, 0.0, 1.0], [0.0, -1.0, 0.0], [1.0, 0.0, 0.0]])
-    pose[:3, 3] = (-0.05, 0.0, 0.15)
-    return pose
 
 
 def hand_defaults_xml() -> str:

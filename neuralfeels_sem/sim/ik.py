@@ -15,7 +15,7 @@ from dataclasses import dataclass
 import mujoco
 import numpy as np
 
-from neuralfeels_sem.sensors.frame import FINGERS
+from neuralfeels_sem.core.hand import FINGERS
 
 MAX_STEP_RAD = 0.2
 

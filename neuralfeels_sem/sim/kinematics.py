@@ -6,9 +6,9 @@ import mujoco
 import numpy as np
 import trimesh
 
-from neuralfeels_sem.sensors.frame import FINGERS
-from neuralfeels_sem.sim.hand_model import default_world_T_palm, hand_only_xml, joint_specs
-from neuralfeels_sem.utils.geometry import check_pose
+from neuralfeels_sem.core.geometry import check_pose
+from neuralfeels_sem.core.hand import FINGERS, default_world_T_palm
+from neuralfeels_sem.sim.hand_model import hand_only_xml, joint_specs
 
 
 def site_pose(data: mujoco.MjData, site_id: int) -> np.ndarray:

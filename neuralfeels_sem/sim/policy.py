@@ -28,7 +28,7 @@ from dataclasses import dataclass
 
 import numpy as np
 
-from neuralfeels_sem.sensors.frame import FINGERS
+from neuralfeels_sem.core.hand import FINGERS
 from neuralfeels_sem.sim.trajectory import ObjectTrajectory
 
 # Stagger of the cycles (fraction of a period): neighbours never lift together.

@@ -1,6 +1,6 @@
 """Small pyrender helpers shared by the tactile and camera renderers.
 
-All poses passed in are OpenCV-convention (`utils.geometry`); the only conversion to
+All poses passed in are OpenCV-convention (`core/geometry.py`); the only conversion to
 OpenGL happens in `opengl_camera_pose`.
 """
 
@@ -11,8 +11,8 @@ import pyrender
 import pyrender.renderer as _pyrender_renderer
 import trimesh
 
+from neuralfeels_sem.core.geometry import OPENGL_T_OPENCV, Intrinsics, check_pose
 from neuralfeels_sem.objects.material_object import IGNORE, MaterialObject
-from neuralfeels_sem.utils.geometry import OPENGL_T_OPENCV, Intrinsics, check_pose
 
 
 def opengl_camera_pose(world_T_camera_cv: np.ndarray) -> np.ndarray:

@@ -26,22 +26,17 @@ from dataclasses import dataclass
 import mujoco
 import numpy as np
 
+from neuralfeels_sem.core.digit import GEL_DISTANCE_M, GEL_HEIGHT_M, GEL_WIDTH_M, MAX_PENETRATION_M
+from neuralfeels_sem.core.geometry import invert_pose
+from neuralfeels_sem.core.hand import FINGERS
 from neuralfeels_sem.objects.material_object import MaterialObject
-from neuralfeels_sem.sensors.frame import FINGERS
 from neuralfeels_sem.sim.camera_renderer import front_left_camera_pose
-from neuralfeels_sem.sim.digit_geometry import (
-    GEL_DISTANCE_M,
-    GEL_HEIGHT_M,
-    GEL_WIDTH_M,
-    MAX_PENETRATION_M,
-)
 from neuralfeels_sem.sim.hand_model import PALM_FACE_X
 from neuralfeels_sem.sim.ik import FingerTarget, FingertipIK
 from neuralfeels_sem.sim.kinematics import HandKinematics
 from neuralfeels_sem.sim.policy import Busy, Contact, FingerPlan, GaitingPolicy
 from neuralfeels_sem.sim.scene import SimScene
 from neuralfeels_sem.sim.trajectory import ObjectTrajectory, perpendicular_basis
-from neuralfeels_sem.utils.geometry import invert_pose
 
 DEFAULT_PRESS_M = {"index": 0.0015, "middle": 0.0015, "ring": 0.0015, "thumb": 0.0007}
 # Posture of fingers that take no part (bent back, away from the object) and the IK start.

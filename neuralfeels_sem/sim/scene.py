@@ -15,16 +15,11 @@ import mujoco
 import numpy as np
 import trimesh
 
+from neuralfeels_sem.core.geometry import OPENGL_T_OPENCV, check_pose
+from neuralfeels_sem.core.hand import FINGERS, default_world_T_palm
 from neuralfeels_sem.objects.material_object import MaterialObject
-from neuralfeels_sem.sensors.frame import FINGERS
-from neuralfeels_sem.sim.hand_model import (
-    default_world_T_palm,
-    hand_actuators_xml,
-    hand_body_xml,
-    hand_defaults_xml,
-)
+from neuralfeels_sem.sim.hand_model import hand_actuators_xml, hand_body_xml, hand_defaults_xml
 from neuralfeels_sem.sim.kinematics import geom_pose, geom_trimesh, site_pose
-from neuralfeels_sem.utils.geometry import OPENGL_T_OPENCV, check_pose
 
 OBJECT_GROUP = 2  # geom group of the object (ray casts see only this group)
 

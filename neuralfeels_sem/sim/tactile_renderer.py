@@ -26,16 +26,18 @@ import cv2
 import numpy as np
 import pyrender
 
-from neuralfeels_sem.materials import DEFAULT_MATERIALS
-from neuralfeels_sem.objects.material_object import IGNORE, MaterialObject
-from neuralfeels_sem.sensors.frame import DIGIT_HEIGHT, DIGIT_WIDTH
-from neuralfeels_sem.sim.backgrounds import resolve_background
-from neuralfeels_sem.sim.digit_geometry import (
+from neuralfeels_sem.core.digit import (
+    DIGIT_HEIGHT,
     DIGIT_INTRINSICS,
+    DIGIT_WIDTH,
     GEL_DISTANCE_M,
     GEL_WIDTH_M,
     MAX_PENETRATION_M,
 )
+from neuralfeels_sem.core.geometry import Intrinsics, check_pose, invert_pose, rotation_matrix
+from neuralfeels_sem.core.materials import DEFAULT_MATERIALS
+from neuralfeels_sem.objects.material_object import IGNORE, MaterialObject
+from neuralfeels_sem.sim.backgrounds import resolve_background
 from neuralfeels_sem.sim.pyrender_utils import (
     LazyOffscreen,
     decode_seg,
@@ -45,7 +47,6 @@ from neuralfeels_sem.sim.pyrender_utils import (
     split_by_material,
 )
 from neuralfeels_sem.sim.textures import MicroTexture, compliance_for, specular_for, texture_for
-from neuralfeels_sem.utils.geometry import Intrinsics, check_pose, invert_pose, rotation_matrix
 
 MAX_RELIEF_M = 0.1e-3  # above every texture's highest relief (fabric threads + fuzz: ~60 um)
 _NOISE_FRAMES, _NOISE_PAD = 8, 64  # noise bank: frames, extra rows/columns for random windows

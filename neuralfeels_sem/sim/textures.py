@@ -26,7 +26,7 @@ from dataclasses import dataclass
 
 import numpy as np
 
-from neuralfeels_sem.errors import ConfigError
+from neuralfeels_sem.core.errors import ConfigError
 
 # How soft each material is, 0 (rigid) .. 1 (fabric): deeper, wider, blurrier imprints.
 DEFAULT_COMPLIANCE: dict[str, float] = {"fabric": 1.0, "plastic": 0.15, "wood": 0.05, "metal": 0.0}

@@ -15,7 +15,7 @@ from dataclasses import dataclass
 import numpy as np
 import trimesh
 
-from neuralfeels_sem.errors import ConfigError
+from neuralfeels_sem.core.errors import ConfigError
 from neuralfeels_sem.objects.material_object import MaterialObject
 
 log = logging.getLogger(__name__)

@@ -13,7 +13,7 @@ from __future__ import annotations
 
 import numpy as np
 
-from neuralfeels_sem.utils.geometry import rotation_matrix
+from neuralfeels_sem.core.geometry import rotation_matrix
 
 
 def perpendicular_basis(axis: np.ndarray) -> tuple[np.ndarray, np.ndarray]:

@@ -21,11 +21,11 @@ import yaml
 from hydra.utils import instantiate
 from omegaconf import DictConfig
 
-from neuralfeels_sem.errors import ConfigError, DataError
+from neuralfeels_sem.core.errors import ConfigError, DataError
+from neuralfeels_sem.core.geometry import Intrinsics, invert_pose
 from neuralfeels_sem.sensors.real.aruco_pose import aruco_dictionary, detect_markers, solve_pnp
 from neuralfeels_sem.sensors.real.poses import pose_from_vector
 from neuralfeels_sem.tasks.runner import output_dir
-from neuralfeels_sem.utils.geometry import Intrinsics, invert_pose
 
 log = logging.getLogger(__name__)
 

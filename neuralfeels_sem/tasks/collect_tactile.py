@@ -34,9 +34,10 @@ from hydra.utils import to_absolute_path
 from omegaconf import DictConfig, OmegaConf
 from tqdm import tqdm
 
-from neuralfeels_sem.errors import ConfigError, DataError
-from neuralfeels_sem.sensors.sim.sim_sensor import finger_seed
-from neuralfeels_sem.sim.digit_geometry import GEL_HEIGHT_M, GEL_WIDTH_M, MAX_PENETRATION_M
+from neuralfeels_sem.core.digit import GEL_HEIGHT_M, GEL_WIDTH_M, MAX_PENETRATION_M
+from neuralfeels_sem.core.errors import ConfigError, DataError
+from neuralfeels_sem.core.geometry import rotation_matrix
+from neuralfeels_sem.sim.backgrounds import finger_seed
 from neuralfeels_sem.sim.touch_sources import (
     FeatureEdges,
     library_objects,
@@ -44,7 +45,6 @@ from neuralfeels_sem.sim.touch_sources import (
     sample_feature_touch,
     sample_touch,
 )
-from neuralfeels_sem.utils.geometry import rotation_matrix
 
 log = logging.getLogger(__name__)
 TRIES_PER_SAMPLE = 40

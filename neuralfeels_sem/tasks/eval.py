@@ -18,7 +18,7 @@ from hydra.errors import ConfigCompositionException
 from hydra.utils import instantiate
 from omegaconf import DictConfig, OmegaConf
 
-from neuralfeels_sem.errors import ConfigError, DataError
+from neuralfeels_sem.core.errors import ConfigError, DataError
 from neuralfeels_sem.mapping.checkpoint import load_checkpoint
 from neuralfeels_sem.tasks.map import (
     BOUND_MARGIN,

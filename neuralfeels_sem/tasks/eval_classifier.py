@@ -19,7 +19,7 @@ import numpy as np
 from hydra.utils import instantiate
 from omegaconf import DictConfig
 
-from neuralfeels_sem.errors import ConfigError
+from neuralfeels_sem.core.errors import ConfigError
 from neuralfeels_sem.perception.classifier import MaterialClassifier
 from neuralfeels_sem.perception.classifier.dataset import (
     load_backgrounds,

@@ -24,7 +24,7 @@ from omegaconf import DictConfig, OmegaConf
 from tqdm import tqdm
 
 from neuralfeels_sem.configs import to_config
-from neuralfeels_sem.errors import NoDataError
+from neuralfeels_sem.core.errors import NoDataError
 from neuralfeels_sem.eval.run_scorer import RunScorer
 from neuralfeels_sem.fields.semantic_field import SemanticField, SemanticFieldConfig
 from neuralfeels_sem.mapping.checkpoint import load_checkpoint, save_checkpoint

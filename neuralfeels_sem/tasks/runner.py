@@ -21,7 +21,7 @@ from hydra.utils import get_method
 from omegaconf import DictConfig
 
 from neuralfeels_sem.configs import validate_config
-from neuralfeels_sem.errors import UserError
+from neuralfeels_sem.core.errors import UserError
 from neuralfeels_sem.utils.seed import seed_everything
 
 log = logging.getLogger(__name__)

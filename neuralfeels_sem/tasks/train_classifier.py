@@ -21,7 +21,7 @@ import torch
 from hydra.utils import instantiate
 from omegaconf import DictConfig
 
-from neuralfeels_sem.errors import ConfigError, DataError
+from neuralfeels_sem.core.errors import ConfigError, DataError
 from neuralfeels_sem.perception.classifier import MaterialClassifier
 from neuralfeels_sem.perception.classifier.checkpoint import load_checkpoint, save_checkpoint
 from neuralfeels_sem.perception.classifier.dataset import (

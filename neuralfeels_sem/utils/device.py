@@ -2,7 +2,7 @@
 
 import os
 
-from neuralfeels_sem.errors import ConfigError
+from neuralfeels_sem.core.errors import ConfigError
 
 
 def resolve_device(name: str = "auto") -> "torch.device":  # noqa: F821

@@ -8,8 +8,8 @@ from pathlib import Path
 import numpy as np
 import trimesh
 
+from neuralfeels_sem.core.palette import colorize
 from neuralfeels_sem.eval.matching import Predictor, predict_labels
-from neuralfeels_sem.viz.palette import colorize
 
 
 def color_mesh(

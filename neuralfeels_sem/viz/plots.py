@@ -12,7 +12,7 @@ import numpy as np
 from matplotlib.figure import Figure
 from matplotlib.patches import Patch
 
-from neuralfeels_sem.viz.palette import BACKGROUND_COLOUR, IGNORE_COLOUR, class_colours, colorize
+from neuralfeels_sem.core.palette import BACKGROUND_COLOUR, IGNORE_COLOUR, class_colours, colorize
 
 MATCH_COLOUR = (225, 225, 225)  # inside the regions of interest, prediction agrees
 MISMATCH_COLOUR = (230, 0, 120)  # inside the regions of interest, prediction differs

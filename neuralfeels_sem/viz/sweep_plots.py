@@ -25,7 +25,7 @@ from pathlib import Path
 import numpy as np
 from matplotlib.figure import Figure
 
-from neuralfeels_sem.viz.palette import class_colours
+from neuralfeels_sem.core.palette import class_colours
 
 log = logging.getLogger(__name__)
 

@@ -5,9 +5,10 @@ from __future__ import annotations
 import numpy as np
 import pytest
 
+from neuralfeels_sem.core.digit import DIGIT_HEIGHT, DIGIT_WIDTH
+from neuralfeels_sem.core.frame import TactileReading
+from neuralfeels_sem.core.geometry import Intrinsics
 from neuralfeels_sem.eval.classifier_metrics import ClassifierAccuracy, gt_material_of
-from neuralfeels_sem.sensors.frame import DIGIT_HEIGHT, DIGIT_WIDTH, TactileReading
-from neuralfeels_sem.utils.geometry import Intrinsics
 
 CLASSES = ["plastic", "metal", "fabric", "wood"]
 

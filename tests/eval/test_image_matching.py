@@ -6,12 +6,12 @@ import numpy as np
 import pytest
 import trimesh
 
+from neuralfeels_sem.core.geometry import Intrinsics, backproject, transform_points
+from neuralfeels_sem.core.materials import BACKGROUND
 from neuralfeels_sem.eval.image_matching import ImageMatcher, render_label_maps
 from neuralfeels_sem.eval.matching import MatchingEvaluator
+from neuralfeels_sem.eval.mesh_render import DepthRenderer, orbit_views
 from neuralfeels_sem.objects.material_object import MaterialObject
-from neuralfeels_sem.utils.geometry import Intrinsics, backproject, transform_points
-from neuralfeels_sem.viz.mesh_render import DepthRenderer, orbit_views
-from neuralfeels_sem.viz.palette import BACKGROUND
 from tests.eval.objects import predict_by_y, predict_swap_x_positive, two_material_sphere
 
 

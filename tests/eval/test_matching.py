@@ -6,7 +6,7 @@ import numpy as np
 import pytest
 import trimesh
 
-from neuralfeels_sem.errors import NoDataError
+from neuralfeels_sem.core.errors import NoDataError
 from neuralfeels_sem.eval.matching import MatchingEvaluator, sample_faces_uniform
 from neuralfeels_sem.objects.material_object import IGNORE, MaterialObject
 from tests.eval.objects import (

@@ -7,11 +7,11 @@ from pathlib import Path
 import numpy as np
 import trimesh
 
+from neuralfeels_sem.core.geometry import Intrinsics, backproject, transform_points
 from neuralfeels_sem.eval.image_matching import ImageMatcher
 from neuralfeels_sem.eval.matching import MatchingEvaluator
 from neuralfeels_sem.eval.shape import shape_metrics
 from neuralfeels_sem.objects.material_object import IGNORE, MaterialObject
-from neuralfeels_sem.utils.geometry import Intrinsics, backproject, transform_points
 
 
 def load_ycb(shared_data: Path, name: str) -> trimesh.Trimesh:

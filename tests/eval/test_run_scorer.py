@@ -7,7 +7,7 @@ import pytest
 import torch
 from torch import nn
 
-from neuralfeels_sem.errors import NoDataError
+from neuralfeels_sem.core.errors import NoDataError
 from neuralfeels_sem.eval import run_scorer
 from neuralfeels_sem.eval.run_scorer import RunScorer
 from tests.eval.objects import RADIUS, two_material_sphere

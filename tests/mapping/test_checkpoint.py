@@ -8,7 +8,7 @@ import numpy as np
 import pytest
 import torch
 
-from neuralfeels_sem.errors import ConfigError, DataError
+from neuralfeels_sem.core.errors import ConfigError, DataError
 from neuralfeels_sem.mapping import checkpoint as checkpoint_module
 from neuralfeels_sem.mapping.checkpoint import load_checkpoint, save_checkpoint
 from neuralfeels_sem.mapping.mapper import OnlineMapper

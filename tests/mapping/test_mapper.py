@@ -8,13 +8,13 @@ import numpy as np
 import pytest
 import torch
 
-from neuralfeels_sem.errors import ConfigError, NoDataError, NumericalError
+from neuralfeels_sem.core.errors import ConfigError, NoDataError, NumericalError
+from neuralfeels_sem.core.frame import Frame
+from neuralfeels_sem.core.geometry import rotation_matrix
 from neuralfeels_sem.mapping.mapper import MapperConfig, OnlineMapper
 from neuralfeels_sem.mapping.pose_source import resolve_pose_source
 from neuralfeels_sem.perception.pointcloud import camera_points
 from neuralfeels_sem.perception.touch import TouchLabel
-from neuralfeels_sem.sensors.frame import Frame
-from neuralfeels_sem.utils.geometry import rotation_matrix
 from tests.mapping.synthetic import (
     RADIUS,
     fibonacci_directions,

@@ -8,9 +8,9 @@ import torch
 import trimesh
 from torch import nn
 
-from neuralfeels_sem.errors import NoDataError
+from neuralfeels_sem.core.errors import NoDataError
+from neuralfeels_sem.core.palette import class_colours
 from neuralfeels_sem.mapping.mesh import extract_mesh, sdf_grid
-from neuralfeels_sem.viz.palette import class_colours
 
 NAMES = ["plastic", "metal"]
 

@@ -9,7 +9,9 @@ import pytest
 import torch
 import trimesh
 
-from neuralfeels_sem.errors import ConfigError
+from neuralfeels_sem.core.errors import ConfigError
+from neuralfeels_sem.core.frame import Frame
+from neuralfeels_sem.core.geometry import transform_points
 from neuralfeels_sem.mapping.pose_source import (
     PoseSource,
     TrackedPose,
@@ -18,8 +20,6 @@ from neuralfeels_sem.mapping.pose_source import (
 )
 from neuralfeels_sem.mapping.pose_tracker import PoseTracker, TrackerConfig, se3_exp
 from neuralfeels_sem.objects.material_object import MaterialObject
-from neuralfeels_sem.sensors.frame import Frame
-from neuralfeels_sem.utils.geometry import transform_points
 
 
 def egg() -> MaterialObject:

@@ -11,6 +11,7 @@ import pytest
 import torch
 import trimesh
 
+from neuralfeels_sem.core.geometry import invert_pose, transform_points
 from neuralfeels_sem.mapping.known_shape import GridSdf, mesh_sdf_grid
 from neuralfeels_sem.mapping.pose_tracker import (
     PoseTracker,
@@ -20,7 +21,6 @@ from neuralfeels_sem.mapping.pose_tracker import (
     se3_exp,
     se3_log,
 )
-from neuralfeels_sem.utils.geometry import invert_pose, transform_points
 from tests.helpers import run_cli
 
 SPHERE_R = 0.03

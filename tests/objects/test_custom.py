@@ -9,7 +9,7 @@ import numpy as np
 import pytest
 import trimesh
 
-from neuralfeels_sem.errors import ConfigError, DataError, UserError
+from neuralfeels_sem.core.errors import ConfigError, DataError, UserError
 from neuralfeels_sem.objects.custom import load_custom_object
 from neuralfeels_sem.objects.example_files import EXAMPLES_DIR, two_tone_egg, write_two_tone_egg
 from neuralfeels_sem.objects.material_object import IGNORE

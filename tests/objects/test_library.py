@@ -7,7 +7,7 @@ import pytest
 import trimesh
 
 from neuralfeels_sem.configs.object import SHIPPED_OBJECTS
-from neuralfeels_sem.errors import ConfigError
+from neuralfeels_sem.core.errors import ConfigError
 from neuralfeels_sem.objects.library import build_arrays, list_objects, make_object
 from neuralfeels_sem.objects.material_object import IGNORE, MaterialObject
 from neuralfeels_sem.objects.procedural import RECIPES

@@ -10,9 +10,9 @@ import numpy as np
 import pytest
 import trimesh
 
+from neuralfeels_sem.core.digit import GEL_HEIGHT_M, GEL_WIDTH_M
 from neuralfeels_sem.objects.library import make_object
 from neuralfeels_sem.objects.material_object import IGNORE, MaterialObject
-from neuralfeels_sem.sim.digit_geometry import GEL_HEIGHT_M, GEL_WIDTH_M
 
 CLASSES = ("plastic", "metal", "fabric", "wood")
 INTENDED = {

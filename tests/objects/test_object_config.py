@@ -10,7 +10,7 @@ from omegaconf import OmegaConf
 from neuralfeels_sem.configs import validate_config
 from neuralfeels_sem.configs.object import SHIPPED_OBJECTS, TACTILE_DATA_OBJECTS
 from neuralfeels_sem.configs.sensor_sim import CollectTactileTaskConfig
-from neuralfeels_sem.errors import ConfigError
+from neuralfeels_sem.core.errors import ConfigError
 from neuralfeels_sem.objects.material_object import MaterialObject
 from tests.helpers import CONF_DIR, compose_config, run_cli
 

@@ -12,7 +12,7 @@ from pathlib import Path
 import cv2
 import numpy as np
 
-from neuralfeels_sem.sensors.frame import DIGIT_HEIGHT, DIGIT_WIDTH
+from neuralfeels_sem.core.digit import DIGIT_HEIGHT, DIGIT_WIDTH
 
 SENSORS = ("index", "middle", "ring", "thumb")
 CLASSES = ["plastic", "metal", "fabric", "wood"]

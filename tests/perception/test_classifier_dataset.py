@@ -10,7 +10,7 @@ import cv2
 import numpy as np
 import pytest
 
-from neuralfeels_sem.errors import DataError
+from neuralfeels_sem.core.errors import DataError
 from neuralfeels_sem.perception.classifier.dataset import (
     class_counts,
     load_samples,

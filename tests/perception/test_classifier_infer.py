@@ -9,15 +9,15 @@ import numpy as np
 import pytest
 import torch
 
-from neuralfeels_sem.errors import ConfigError
+from neuralfeels_sem.core.digit import DIGIT_INTRINSICS
+from neuralfeels_sem.core.errors import ConfigError
+from neuralfeels_sem.core.frame import TactileReading
 from neuralfeels_sem.perception.classifier import MaterialClassifier, OracleClassifier
 from neuralfeels_sem.perception.classifier.checkpoint import save_checkpoint
 from neuralfeels_sem.perception.classifier.model import build_model
 from neuralfeels_sem.perception.classifier.transforms import IMAGENET_MEAN, IMAGENET_STD
 from neuralfeels_sem.perception.contact import edge_share
 from neuralfeels_sem.perception.touch import NO_LABEL
-from neuralfeels_sem.sensors.frame import TactileReading
-from neuralfeels_sem.sim.digit_geometry import DIGIT_INTRINSICS
 from tests.perception.synthetic_tactile import CLASSES, background, pressed
 
 

@@ -9,7 +9,7 @@ import pytest
 import torch
 from efficientnet_pytorch import EfficientNet
 
-from neuralfeels_sem.errors import DataError
+from neuralfeels_sem.core.errors import DataError
 from neuralfeels_sem.perception.classifier.checkpoint import load_checkpoint, save_checkpoint
 from neuralfeels_sem.perception.classifier.model import HEAD_KEYS, build_model
 from neuralfeels_sem.perception.classifier.transforms import IMAGENET_MEAN, IMAGENET_STD

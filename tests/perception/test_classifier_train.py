@@ -8,7 +8,7 @@ import numpy as np
 import pytest
 import torch
 
-from neuralfeels_sem.errors import DataError
+from neuralfeels_sem.core.errors import DataError
 from neuralfeels_sem.perception.classifier import train as train_module
 from neuralfeels_sem.perception.classifier.checkpoint import load_checkpoint
 from neuralfeels_sem.perception.classifier.model import build_model

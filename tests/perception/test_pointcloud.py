@@ -5,13 +5,13 @@ from __future__ import annotations
 import numpy as np
 import pytest
 
+from neuralfeels_sem.core.digit import GEL_DISTANCE_M
+from neuralfeels_sem.core.geometry import invert_pose
 from neuralfeels_sem.perception.pointcloud import (
     camera_points,
     sensor_origin_and_axis,
     tactile_points,
 )
-from neuralfeels_sem.sim.digit_geometry import GEL_DISTANCE_M
-from neuralfeels_sem.utils.geometry import invert_pose
 from tests.mapping.synthetic import RADIUS, camera_reading, digit_reading, object_pose
 
 

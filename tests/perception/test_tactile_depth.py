@@ -6,10 +6,10 @@ import cv2
 import numpy as np
 import pytest
 
-from neuralfeels_sem.errors import DataError
+from neuralfeels_sem.core.digit import DIGIT_INTRINSICS, GEL_DISTANCE_M, MAX_PENETRATION_M
+from neuralfeels_sem.core.errors import DataError
+from neuralfeels_sem.core.frame import TactileReading
 from neuralfeels_sem.perception.tactile_depth import TactileDepth, TactileDepthConfig
-from neuralfeels_sem.sensors.frame import TactileReading
-from neuralfeels_sem.sim.digit_geometry import DIGIT_INTRINSICS, GEL_DISTANCE_M, MAX_PENETRATION_M
 from tests.mapping.synthetic import digit_reading, object_pose
 
 H, W = DIGIT_INTRINSICS.height, DIGIT_INTRINSICS.width

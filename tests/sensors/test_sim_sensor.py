@@ -5,10 +5,10 @@ from __future__ import annotations
 import numpy as np
 import pytest
 
-from neuralfeels_sem.errors import ConfigError
-from neuralfeels_sem.sensors.frame import DIGIT_HEIGHT, DIGIT_WIDTH, FINGERS
+from neuralfeels_sem.core.digit import DIGIT_HEIGHT, DIGIT_INTRINSICS, DIGIT_WIDTH
+from neuralfeels_sem.core.errors import ConfigError
+from neuralfeels_sem.core.hand import FINGERS
 from neuralfeels_sem.sensors.sim import SimSensor
-from neuralfeels_sem.sim.digit_geometry import DIGIT_INTRINSICS
 from tests.sim.shapes import CLASSES, two_material_sphere
 
 

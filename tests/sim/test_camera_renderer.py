@@ -6,19 +6,19 @@ import numpy as np
 import pytest
 import trimesh
 
-from neuralfeels_sem.objects.material_object import IGNORE, MaterialObject
-from neuralfeels_sem.sensors.frame import CameraReading
-from neuralfeels_sem.sim.camera_renderer import (
-    CameraRenderer,
-    front_left_camera_pose,
-    material_colour,
-)
-from neuralfeels_sem.utils.geometry import (
+from neuralfeels_sem.core.frame import CameraReading
+from neuralfeels_sem.core.geometry import (
     backproject,
     invert_pose,
     project,
     rotation_matrix,
     transform_points,
+)
+from neuralfeels_sem.objects.material_object import IGNORE, MaterialObject
+from neuralfeels_sem.sim.camera_renderer import (
+    CameraRenderer,
+    front_left_camera_pose,
+    material_colour,
 )
 
 MATERIALS = ("plastic", "metal", "fabric", "wood")

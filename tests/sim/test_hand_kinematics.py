@@ -6,9 +6,9 @@ import mujoco
 import numpy as np
 import pytest
 
-from neuralfeels_sem.sensors.frame import FINGERS
-from neuralfeels_sem.sim.digit_geometry import GEL_DISTANCE_M
-from neuralfeels_sem.sim.hand_model import default_world_T_palm, hand_only_xml
+from neuralfeels_sem.core.digit import GEL_DISTANCE_M
+from neuralfeels_sem.core.hand import FINGERS, default_world_T_palm
+from neuralfeels_sem.sim.hand_model import hand_only_xml
 from neuralfeels_sem.sim.ik import FingerTarget, FingertipIK
 from neuralfeels_sem.sim.kinematics import HandKinematics
 

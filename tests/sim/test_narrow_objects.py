@@ -12,7 +12,7 @@ from __future__ import annotations
 import pytest
 
 from neuralfeels_sem.bench.finger_contacts import ContactReport, measure
-from neuralfeels_sem.sensors.frame import FINGERS
+from neuralfeels_sem.core.hand import FINGERS
 from neuralfeels_sem.sim.rig import OVERLAP_TOLERANCE_M
 
 

@@ -5,7 +5,7 @@ from __future__ import annotations
 import numpy as np
 import pytest
 
-from neuralfeels_sem.sensors.frame import FINGERS
+from neuralfeels_sem.core.hand import FINGERS
 from neuralfeels_sem.sim.policy import Busy, Contact, GaitingPolicy
 from neuralfeels_sem.sim.trajectory import ObjectTrajectory
 

@@ -8,8 +8,8 @@ import trimesh
 from scipy.spatial import cKDTree
 
 from neuralfeels_sem.bench.finger_contacts import finger_gaps, finger_geoms
+from neuralfeels_sem.core.hand import FINGERS
 from neuralfeels_sem.objects.material_object import MaterialObject
-from neuralfeels_sem.sensors.frame import FINGERS
 from neuralfeels_sem.sim.kinematics import HandKinematics
 from neuralfeels_sem.sim.rig import BOTTOM_COS, OVERLAP_TOLERANCE_M, SimRig
 from tests.sim.shapes import CLASSES, two_material_sphere

@@ -5,11 +5,11 @@ from __future__ import annotations
 import numpy as np
 import pytest
 
-from neuralfeels_sem.sensors.frame import FINGERS
+from neuralfeels_sem.core.geometry import look_at
+from neuralfeels_sem.core.hand import FINGERS
 from neuralfeels_sem.sim.kinematics import HandKinematics
 from neuralfeels_sem.sim.rig import NOMINAL_Q
 from neuralfeels_sem.sim.scene import SimScene
-from neuralfeels_sem.utils.geometry import look_at
 from tests.sim.shapes import box, two_material_sphere
 
 

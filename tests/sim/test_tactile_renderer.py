@@ -6,7 +6,14 @@ import numpy as np
 import pytest
 import trimesh
 
-from neuralfeels_sem.errors import DataError
+from neuralfeels_sem.core.digit import DIGIT_INTRINSICS, GEL_DISTANCE_M, MAX_PENETRATION_M
+from neuralfeels_sem.core.errors import DataError
+from neuralfeels_sem.core.geometry import (
+    backproject,
+    invert_pose,
+    rotation_matrix,
+    transform_points,
+)
 from neuralfeels_sem.objects.material_object import IGNORE, MaterialObject
 from neuralfeels_sem.perception.contact import edge_share
 from neuralfeels_sem.sim.backgrounds import (
@@ -14,18 +21,11 @@ from neuralfeels_sem.sim.backgrounds import (
     procedural_background,
     resolve_background,
 )
-from neuralfeels_sem.sim.digit_geometry import DIGIT_INTRINSICS, GEL_DISTANCE_M, MAX_PENETRATION_M
 from neuralfeels_sem.sim.tactile_renderer import (
     DigitRenderer,
     contact_sheet,
     pose_pressing,
     pose_pressing_edge,
-)
-from neuralfeels_sem.utils.geometry import (
-    backproject,
-    invert_pose,
-    rotation_matrix,
-    transform_points,
 )
 
 MATERIALS = ("plastic", "metal", "fabric", "wood")

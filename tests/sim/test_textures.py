@@ -8,9 +8,9 @@ import pytest
 import trimesh
 from scipy import ndimage
 
-from neuralfeels_sem.errors import ConfigError
+from neuralfeels_sem.core.digit import DIGIT_INTRINSICS, GEL_DISTANCE_M
+from neuralfeels_sem.core.errors import ConfigError
 from neuralfeels_sem.objects.material_object import MaterialObject
-from neuralfeels_sem.sim.digit_geometry import DIGIT_INTRINSICS, GEL_DISTANCE_M
 from neuralfeels_sem.sim.tactile_renderer import DigitRenderer, pose_pressing
 from neuralfeels_sem.sim.textures import (
     FabricTexture,

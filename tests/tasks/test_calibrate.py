@@ -7,10 +7,10 @@ import numpy as np
 import pytest
 import yaml
 
-from neuralfeels_sem.errors import DataError
+from neuralfeels_sem.core.errors import DataError
+from neuralfeels_sem.core.geometry import Intrinsics, look_at
 from neuralfeels_sem.sensors.real.poses import pose_from_vector
 from neuralfeels_sem.tasks import calibrate
-from neuralfeels_sem.utils.geometry import Intrinsics, look_at
 from tests.helpers import compose_config
 from tests.sensors.real.synthetic_views import board_texture, render_plane
 

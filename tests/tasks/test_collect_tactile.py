@@ -10,7 +10,7 @@ import numpy as np
 import pytest
 import trimesh
 
-from neuralfeels_sem.errors import ConfigError, DataError
+from neuralfeels_sem.core.errors import ConfigError, DataError
 from neuralfeels_sem.objects.material_object import MaterialObject
 from neuralfeels_sem.sim.touch_sources import (
     FeatureEdges,

@@ -160,7 +160,7 @@ def test_task_eval_refuses_a_directory_that_is_not_a_run(tmp_path: Path) -> None
 def test_task_eval_names_overrides_that_no_longer_compose(tmp_path: Path) -> None:
     from hydra import initialize_config_dir
 
-    from neuralfeels_sem.errors import ConfigError
+    from neuralfeels_sem.core.errors import ConfigError
     from neuralfeels_sem.tasks.eval import load_run_config
     from tests.helpers import CONF_DIR, register_configs
 

@@ -7,7 +7,7 @@ from pathlib import Path
 
 import pytest
 
-from neuralfeels_sem.errors import ConfigError
+from neuralfeels_sem.core.errors import ConfigError
 from neuralfeels_sem.perception.classifier.checkpoint import load_checkpoint
 from neuralfeels_sem.tasks.train_classifier import resume_path
 from tests.helpers import run_cli

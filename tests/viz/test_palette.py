@@ -5,7 +5,8 @@ from __future__ import annotations
 import numpy as np
 import pytest
 
-from neuralfeels_sem.viz.palette import BACKGROUND, MATERIAL_COLOURS, class_colours, colorize
+from neuralfeels_sem.core.materials import BACKGROUND
+from neuralfeels_sem.core.palette import MATERIAL_COLOURS, class_colours, colorize
 
 CLASSES = ["plastic", "metal", "fabric", "wood"]
 

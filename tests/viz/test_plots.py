@@ -8,8 +8,8 @@ import numpy as np
 import pytest
 import trimesh
 
+from neuralfeels_sem.core.palette import MATERIAL_COLOURS
 from neuralfeels_sem.viz.material_mesh import color_mesh, save_material_mesh
-from neuralfeels_sem.viz.palette import MATERIAL_COLOURS
 from neuralfeels_sem.viz.plots import (
     MISMATCH_COLOUR,
     diff_image,

@@ -19,7 +19,7 @@ from typing import Any
 import torch
 from torch import nn
 
-from neuralfeels_sem.errors import DataError
+from neuralfeels_sem.core.errors import DataError
 from neuralfeels_sem.perception.classifier.model import ARCH, build_model
 
 FORMAT = "neuralfeels_sem.classifier/1"

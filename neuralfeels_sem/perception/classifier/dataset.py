@@ -19,9 +19,9 @@ import cv2
 import numpy as np
 from tqdm import tqdm
 
-from neuralfeels_sem.errors import DataError
+from neuralfeels_sem.core.digit import DIGIT_HEIGHT, DIGIT_WIDTH
+from neuralfeels_sem.core.errors import DataError
 from neuralfeels_sem.perception.classifier.transforms import preprocess
-from neuralfeels_sem.sensors.frame import DIGIT_HEIGHT, DIGIT_WIDTH
 from neuralfeels_sem.utils.paths import REPO_DIR
 
 log = logging.getLogger(__name__)

@@ -19,14 +19,14 @@ import cv2
 import numpy as np
 import torch
 
-from neuralfeels_sem.errors import ConfigError, DataError
+from neuralfeels_sem.core.errors import ConfigError, DataError
+from neuralfeels_sem.core.frame import TactileReading
 from neuralfeels_sem.perception.classifier.checkpoint import ClassifierCheckpoint, load_checkpoint
 from neuralfeels_sem.perception.classifier.model import build_model
 from neuralfeels_sem.perception.classifier.predict import predict_probs
 from neuralfeels_sem.perception.classifier.transforms import preprocess, resize_batch
 from neuralfeels_sem.perception.contact import ContactGate, edge_share
 from neuralfeels_sem.perception.touch import NO_LABEL, TouchLabel
-from neuralfeels_sem.sensors.frame import TactileReading
 from neuralfeels_sem.utils.device import resolve_device
 from neuralfeels_sem.utils.paths import ASSETS_DIR
 
@@ -44,7 +44,7 @@ class MaterialClassifier:
     max_edge_share, edge_px: a touch with more than this share of its contact pixels within
         `edge_px` of the sensor's border (an imprint cut off by the edge, typical of a tilted
         pad) gets no label either (1.0 = never). The defaults (0.8, 0.5) were chosen on the
-        rig's own touches (`sim/rig_touches.py`, seed 0, seven objects): the shipped model
+        rig's own touches (`bench/rig_touches.py`, seed 0, seven objects): the shipped model
         labels 63 % of them, 99.3 % correctly; thinner strips are often wrong even when
         the model is confident.
     contact_*: ContactGate parameters (see perception/contact.py).

@@ -13,7 +13,7 @@ import torch
 from efficientnet_pytorch import EfficientNet
 from torch import nn
 
-from neuralfeels_sem.errors import DataError
+from neuralfeels_sem.core.errors import DataError
 
 ARCH = "efficientnet-b0"
 HEAD_KEYS = ("_fc.weight", "_fc.bias")

@@ -10,9 +10,9 @@ from collections.abc import Sequence
 
 import numpy as np
 
-from neuralfeels_sem.errors import ConfigError
+from neuralfeels_sem.core.errors import ConfigError
+from neuralfeels_sem.core.frame import TactileReading
 from neuralfeels_sem.perception.touch import NO_LABEL, TouchLabel
-from neuralfeels_sem.sensors.frame import TactileReading
 
 
 class OracleClassifier:

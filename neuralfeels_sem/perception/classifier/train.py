@@ -21,7 +21,7 @@ import torch.nn.functional as F
 from torch import nn
 from tqdm import tqdm
 
-from neuralfeels_sem.errors import DataError
+from neuralfeels_sem.core.errors import DataError
 from neuralfeels_sem.perception.classifier.checkpoint import save_checkpoint
 from neuralfeels_sem.perception.classifier.predict import predict_probs
 from neuralfeels_sem.perception.classifier.transforms import augment, normalize, to_tensor

@@ -14,7 +14,7 @@ from collections.abc import Sequence
 
 import numpy as np
 
-from neuralfeels_sem.errors import ConfigError, HardwareError
+from neuralfeels_sem.core.errors import ConfigError, HardwareError
 from neuralfeels_sem.sensors.real import allegro_protocol as proto
 
 log = logging.getLogger(__name__)

@@ -14,9 +14,9 @@ from collections.abc import Mapping, Sequence
 import cv2
 import numpy as np
 
-from neuralfeels_sem.errors import ConfigError
+from neuralfeels_sem.core.errors import ConfigError
+from neuralfeels_sem.core.geometry import Intrinsics, transform_points
 from neuralfeels_sem.sensors.real.poses import pose_from_vector
-from neuralfeels_sem.utils.geometry import Intrinsics, transform_points
 
 
 def aruco_dictionary(name: str) -> cv2.aruco.Dictionary:

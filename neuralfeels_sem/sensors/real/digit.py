@@ -15,8 +15,9 @@ from collections.abc import Mapping, Sequence
 import cv2
 import numpy as np
 
-from neuralfeels_sem.errors import DataError, HardwareError
-from neuralfeels_sem.sensors.frame import DIGIT_HEIGHT, DIGIT_WIDTH, FINGERS
+from neuralfeels_sem.core.digit import DIGIT_HEIGHT, DIGIT_WIDTH
+from neuralfeels_sem.core.errors import DataError, HardwareError
+from neuralfeels_sem.core.hand import FINGERS
 
 log = logging.getLogger(__name__)
 

@@ -20,7 +20,7 @@ from collections.abc import Sequence
 
 import numpy as np
 
-from neuralfeels_sem.errors import ConfigError, HardwareError
+from neuralfeels_sem.core.errors import ConfigError, HardwareError
 
 log = logging.getLogger(__name__)
 

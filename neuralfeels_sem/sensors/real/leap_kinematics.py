@@ -21,10 +21,9 @@ from __future__ import annotations
 
 import numpy as np
 
-from neuralfeels_sem.sensors.frame import FINGERS
-from neuralfeels_sem.sim.digit_geometry import GEL_DISTANCE_M
-from neuralfeels_sem.sim.hand_model import default_world_T_palm
-from neuralfeels_sem.utils.geometry import check_pose
+from neuralfeels_sem.core.digit import GEL_DISTANCE_M
+from neuralfeels_sem.core.geometry import check_pose
+from neuralfeels_sem.core.hand import FINGERS, default_world_T_palm
 
 HALF_PI = np.pi / 2
 Origin = tuple[tuple[float, float, float], tuple[float, float, float]]  # (xyz m, rpy rad)

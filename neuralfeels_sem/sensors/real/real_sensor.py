@@ -17,15 +17,15 @@ from typing import Any
 import numpy as np
 from hydra.utils import get_class
 
-from neuralfeels_sem.errors import ConfigError, HardwareError, UserError
+from neuralfeels_sem.core.digit import DIGIT_INTRINSICS
+from neuralfeels_sem.core.errors import ConfigError, HardwareError, UserError
+from neuralfeels_sem.core.frame import CameraReading, Frame, TactileReading
 from neuralfeels_sem.sensors.base import Sensor
-from neuralfeels_sem.sensors.frame import CameraReading, Frame, TactileReading
 from neuralfeels_sem.sensors.real.aruco_pose import MISSING_LAYOUT, ArucoObjectPose
 from neuralfeels_sem.sensors.real.digit import DigitArray
 from neuralfeels_sem.sensors.real.hand_kinematics import kinematics_target
 from neuralfeels_sem.sensors.real.poses import pose_from_vector
 from neuralfeels_sem.sensors.real.realsense import RealSenseCamera
-from neuralfeels_sem.sim.digit_geometry import DIGIT_INTRINSICS
 
 log = logging.getLogger(__name__)
 

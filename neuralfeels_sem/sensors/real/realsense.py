@@ -14,9 +14,9 @@ from pathlib import Path
 import numpy as np
 import yaml
 
-from neuralfeels_sem.errors import ConfigError, DataError, HardwareError
+from neuralfeels_sem.core.errors import ConfigError, DataError, HardwareError
+from neuralfeels_sem.core.geometry import Intrinsics
 from neuralfeels_sem.sensors.real.poses import pose_from_vector
-from neuralfeels_sem.utils.geometry import Intrinsics
 
 log = logging.getLogger(__name__)
 

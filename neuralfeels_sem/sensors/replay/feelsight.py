@@ -28,10 +28,11 @@ import cv2
 import numpy as np
 from tqdm import tqdm
 
-from neuralfeels_sem.errors import DataError
-from neuralfeels_sem.sensors.frame import FINGERS, CameraReading, Frame, TactileReading
-from neuralfeels_sem.sim.digit_geometry import DIGIT_INTRINSICS, GEL_DISTANCE_M
-from neuralfeels_sem.utils.geometry import OPENGL_T_OPENCV, Intrinsics
+from neuralfeels_sem.core.digit import DIGIT_INTRINSICS, GEL_DISTANCE_M
+from neuralfeels_sem.core.errors import DataError
+from neuralfeels_sem.core.frame import CameraReading, Frame, TactileReading
+from neuralfeels_sem.core.geometry import OPENGL_T_OPENCV, Intrinsics
+from neuralfeels_sem.core.hand import FINGERS
 
 JPEG_QUALITY = 95
 

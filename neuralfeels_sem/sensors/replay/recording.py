@@ -31,9 +31,9 @@ from pathlib import Path
 import cv2
 import numpy as np
 
-from neuralfeels_sem.errors import DataError
-from neuralfeels_sem.sensors.frame import CameraReading, Frame, TactileReading
-from neuralfeels_sem.utils.geometry import Intrinsics
+from neuralfeels_sem.core.errors import DataError
+from neuralfeels_sem.core.frame import CameraReading, Frame, TactileReading
+from neuralfeels_sem.core.geometry import Intrinsics
 
 SCHEMA_VERSION = 1
 

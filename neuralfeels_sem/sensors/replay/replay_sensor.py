@@ -12,9 +12,9 @@ from collections.abc import Iterator, Sequence
 from pathlib import Path
 from typing import Any
 
-from neuralfeels_sem.errors import ConfigError, DataError
+from neuralfeels_sem.core.errors import ConfigError, DataError
+from neuralfeels_sem.core.frame import Frame
 from neuralfeels_sem.sensors.base import Sensor
-from neuralfeels_sem.sensors.frame import Frame
 
 log = logging.getLogger(__name__)
 

@@ -14,18 +14,15 @@ from collections.abc import Iterator, Sequence
 
 import numpy as np
 
-from neuralfeels_sem.errors import ConfigError
+from neuralfeels_sem.core.digit import DIGIT_INTRINSICS
+from neuralfeels_sem.core.errors import ConfigError
+from neuralfeels_sem.core.frame import Frame, TactileReading
+from neuralfeels_sem.core.hand import FINGERS
 from neuralfeels_sem.objects.material_object import MaterialObject
 from neuralfeels_sem.sensors.base import Sensor
-from neuralfeels_sem.sensors.frame import FINGERS, Frame, TactileReading
-from neuralfeels_sem.sim.digit_geometry import DIGIT_INTRINSICS
+from neuralfeels_sem.sim.backgrounds import finger_seed
 
 DEFAULT_FIRMNESS_MM = {"index": 1.5, "middle": 1.5, "ring": 1.5, "thumb": 0.7}
-
-
-def finger_seed(seed: int, finger: str) -> int:
-    """Renderer seed of one finger's DIGIT (its background and noise stream)."""
-    return seed + FINGERS.index(finger)
 
 
 class SimSensor(Sensor):

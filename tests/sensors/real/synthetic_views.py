@@ -5,7 +5,7 @@ from __future__ import annotations
 import cv2
 import numpy as np
 
-from neuralfeels_sem.utils.geometry import Intrinsics
+from neuralfeels_sem.core.geometry import Intrinsics
 
 
 def render_plane(

@@ -8,7 +8,7 @@ import struct
 import numpy as np
 import pytest
 
-from neuralfeels_sem.errors import ConfigError, HardwareError
+from neuralfeels_sem.core.errors import ConfigError, HardwareError
 from neuralfeels_sem.sensors.real import allegro_protocol as proto
 from neuralfeels_sem.sensors.real.allegro_can import AllegroCAN
 from tests.sensors.real.fake_allegro import FakeAllegro

@@ -4,9 +4,9 @@ from __future__ import annotations
 
 import numpy as np
 
+from neuralfeels_sem.core.geometry import Intrinsics, look_at
 from neuralfeels_sem.sensors.real.aruco_pose import ArucoObjectPose, aruco_dictionary
 from neuralfeels_sem.sensors.real.poses import pose_from_vector, vector_from_pose
-from neuralfeels_sem.utils.geometry import Intrinsics, look_at
 from tests.sensors.real.synthetic_views import marker_texture, render_plane
 
 INTR = Intrinsics(fx=600.0, fy=600.0, cx=319.5, cy=239.5, width=640, height=480)

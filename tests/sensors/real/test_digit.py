@@ -5,7 +5,7 @@ from __future__ import annotations
 import numpy as np
 import pytest
 
-from neuralfeels_sem.errors import DataError, HardwareError
+from neuralfeels_sem.core.errors import DataError, HardwareError
 from neuralfeels_sem.sensors.real.digit import DigitArray, DigitCamera, digit_raw_to_image
 from tests.sensors.real.video_digits import digit_like_frames, write_video
 

@@ -6,7 +6,7 @@ import numpy as np
 import pytest
 from dynamixel_sdk import Protocol2PacketHandler
 
-from neuralfeels_sem.errors import ConfigError, HardwareError
+from neuralfeels_sem.core.errors import ConfigError, HardwareError
 from neuralfeels_sem.sensors.real.digit import DigitArray
 from neuralfeels_sem.sensors.real.dynamixel_hand import (
     DynamixelHand,

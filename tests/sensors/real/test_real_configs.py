@@ -7,7 +7,7 @@ import pytest
 from hydra.utils import instantiate
 
 from neuralfeels_sem.configs import validate_config
-from neuralfeels_sem.errors import ConfigError, HardwareError
+from neuralfeels_sem.core.errors import ConfigError, HardwareError
 from neuralfeels_sem.sensors.factory import build_sensor
 from neuralfeels_sem.sensors.real.allegro_can import AllegroCAN
 from neuralfeels_sem.sensors.real.aruco_pose import MISSING_LAYOUT

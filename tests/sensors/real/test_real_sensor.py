@@ -7,7 +7,7 @@ import logging
 import numpy as np
 import pytest
 
-from neuralfeels_sem.errors import HardwareError
+from neuralfeels_sem.core.errors import HardwareError
 from neuralfeels_sem.sensors.real.allegro_can import AllegroCAN
 from neuralfeels_sem.sensors.real.digit import DigitArray
 from neuralfeels_sem.sensors.real.real_sensor import RealSensor

@@ -7,7 +7,7 @@ import pyrealsense2 as rs
 import pytest
 import yaml
 
-from neuralfeels_sem.errors import ConfigError, DataError, HardwareError
+from neuralfeels_sem.core.errors import ConfigError, DataError, HardwareError
 from neuralfeels_sem.sensors.real.realsense import (
     RealSenseCamera,
     depth_to_metres,

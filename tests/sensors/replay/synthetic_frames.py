@@ -4,9 +4,10 @@ from __future__ import annotations
 
 import numpy as np
 
-from neuralfeels_sem.sensors.frame import FINGERS, CameraReading, Frame, TactileReading
-from neuralfeels_sem.sim.digit_geometry import DIGIT_INTRINSICS
-from neuralfeels_sem.utils.geometry import Intrinsics, rotation_matrix
+from neuralfeels_sem.core.digit import DIGIT_INTRINSICS
+from neuralfeels_sem.core.frame import CameraReading, Frame, TactileReading
+from neuralfeels_sem.core.geometry import Intrinsics, rotation_matrix
+from neuralfeels_sem.core.hand import FINGERS
 
 CAMERA_INTRINSICS = Intrinsics(fx=120.0, fy=121.0, cx=39.5, cy=29.5, width=80, height=60)
 

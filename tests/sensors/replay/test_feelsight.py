@@ -7,12 +7,12 @@ import pickle
 import numpy as np
 import pytest
 
-from neuralfeels_sem.errors import DataError
+from neuralfeels_sem.core.errors import DataError
+from neuralfeels_sem.core.geometry import OPENGL_T_OPENCV
 from neuralfeels_sem.sensors.replay.feelsight import FeelSightReader, export_feelsight
 from neuralfeels_sem.sensors.replay.recording import RecordingWriter
 from neuralfeels_sem.sensors.replay.replay_sensor import ReplaySensor
 from neuralfeels_sem.sim.kinematics import HandKinematics
-from neuralfeels_sem.utils.geometry import OPENGL_T_OPENCV
 from tests.sensors.replay.synthetic_frames import make_frames
 
 

@@ -7,7 +7,7 @@ import json
 import numpy as np
 import pytest
 
-from neuralfeels_sem.errors import ConfigError, DataError
+from neuralfeels_sem.core.errors import ConfigError, DataError
 from neuralfeels_sem.sensors.replay import replay_sensor as replay_module
 from neuralfeels_sem.sensors.replay.recording import RecordingReader, RecordingWriter
 from neuralfeels_sem.sensors.replay.replay_sensor import ReplaySensor

@@ -11,7 +11,7 @@ material is at least `min_purity` one class, in the ImageFolder layout
 reads, with `_backgrounds/<sensor>.png` and `touches.json` (every gated touch: object,
 frame, finger, majority class, purity, contact pixels, edge share).
 
-    python -m neuralfeels_sem.sim.rig_touches data/tactile/rig_seed0 --seed 0
+    python -m neuralfeels_sem.bench.rig_touches data/tactile/rig_seed0 --seed 0
     python run.py task=eval_classifier dataset.root=data/tactile/rig_seed0
 
 Not a training set for runs with the same seed: these are the very frames a map run sees.
@@ -29,12 +29,12 @@ import numpy as np
 from tqdm import tqdm
 
 from neuralfeels_sem.configs.sensor_sim import SimSensorConfig
-from neuralfeels_sem.materials import DEFAULT_MATERIALS
+from neuralfeels_sem.core.hand import FINGERS
+from neuralfeels_sem.core.materials import DEFAULT_MATERIALS
 from neuralfeels_sem.objects.library import make_object
 from neuralfeels_sem.objects.procedural import RECIPES
 from neuralfeels_sem.perception.contact import ContactGate, edge_share
-from neuralfeels_sem.sensors.frame import FINGERS
-from neuralfeels_sem.sensors.sim.sim_sensor import finger_seed
+from neuralfeels_sem.sim.backgrounds import finger_seed
 from neuralfeels_sem.sim.rig import SimRig
 
 CLASSES = tuple(DEFAULT_MATERIALS)

@@ -1,6 +1,6 @@
 """Offscreen depth rendering of a mesh from fixed views (pyrender on EGL).
 
-Poses and intrinsics are OpenCV (utils/geometry.py); the conversion to pyrender's OpenGL
+Poses and intrinsics are OpenCV (core/geometry.py); the conversion to pyrender's OpenGL
 camera happens in `DepthRenderer.render` and nowhere else.
 """
 
@@ -9,7 +9,7 @@ from __future__ import annotations
 import numpy as np
 import trimesh
 
-from neuralfeels_sem.utils.geometry import OPENGL_T_OPENCV, Intrinsics, check_pose, look_at
+from neuralfeels_sem.core.geometry import OPENGL_T_OPENCV, Intrinsics, check_pose, look_at
 
 
 def orbit_views(

@@ -1,4 +1,4 @@
-"""Geometry of a simulated DIGIT, shared by the hand model, the renderer and perception.
+"""Geometry of a DIGIT, shared by the hand models, the renderers, perception and the real rig.
 
 Sensor frame = the DIGIT's internal camera, OpenCV convention: +z looks out through
 the gel toward the object, +x along the image columns (240 px), +y along the rows
@@ -7,8 +7,9 @@ touches the gel when its depth along +z is below that plane, and the gel can be
 pressed in by at most MAX_PENETRATION_M.
 """
 
-from neuralfeels_sem.sensors.frame import DIGIT_HEIGHT, DIGIT_WIDTH
-from neuralfeels_sem.utils.geometry import Intrinsics
+from neuralfeels_sem.core.geometry import Intrinsics
+
+DIGIT_HEIGHT, DIGIT_WIDTH = 320, 240  # image rows x columns (QVGA portrait)
 
 GEL_WIDTH_M = 0.018  # along +x (image columns)
 GEL_HEIGHT_M = 0.024  # along +y (image rows)

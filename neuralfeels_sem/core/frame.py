@@ -1,6 +1,6 @@
 """The one data type every sensor backend (sim, real, replay) yields.
 
-Conventions (see neuralfeels_sem/utils/geometry.py): poses are 4x4 `world_T_x`,
+Conventions (see neuralfeels_sem/core/geometry.py): poses are 4x4 `world_T_x`,
 cameras are OpenCV (+z forward), depth in metres with 0 = invalid. Tactile images
 are DIGIT-sized: 320 rows x 240 columns x RGB uint8. Ground-truth fields are None
 on real hardware.
@@ -12,10 +12,8 @@ from dataclasses import dataclass, field
 
 import numpy as np
 
-from neuralfeels_sem.utils.geometry import Intrinsics, check_pose
-
-FINGERS = ("index", "middle", "ring", "thumb")
-DIGIT_HEIGHT, DIGIT_WIDTH = 320, 240
+from neuralfeels_sem.core.geometry import Intrinsics, check_pose
+from neuralfeels_sem.core.hand import FINGERS
 
 
 @dataclass

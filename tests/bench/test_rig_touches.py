@@ -9,8 +9,9 @@ import cv2
 import numpy as np
 import pytest
 
+from neuralfeels_sem.bench.rig_touches import collect
+from neuralfeels_sem.core.materials import DEFAULT_MATERIALS
 from neuralfeels_sem.perception.classifier.dataset import load_backgrounds, scan_dataset
-from neuralfeels_sem.sim.rig_touches import collect
 
 
 def test_rig_touches_are_written_with_their_ground_truth_material(tmp_path: Path) -> None:
@@ -29,7 +30,7 @@ def test_rig_touches_are_written_with_their_ground_truth_material(tmp_path: Path
     assert {r["material"] for r in records} <= {"plastic", "fabric"}  # patched_toy's materials
     assert json.loads((tmp_path / "touches.json").read_text()) == records
     # task=eval_classifier reads it: ImageFolder layout with each DIGIT's background.
-    samples = scan_dataset(tmp_path, ["plastic", "metal", "fabric", "wood"], False)
+    samples = scan_dataset(tmp_path, list(DEFAULT_MATERIALS), False)
     assert len(samples) == len(written)
     assert sorted(load_backgrounds(tmp_path)) == ["index", "middle", "ring", "thumb"]
     # Same seed, same frames: the run is repeatable.

@@ -10,9 +10,7 @@ from collections.abc import Sequence
 
 import numpy as np
 
-from neuralfeels_sem.objects.material_object import IGNORE
-
-BACKGROUND = -2
+from neuralfeels_sem.core.materials import BACKGROUND
 
 MATERIAL_COLOURS: dict[str, tuple[int, int, int]] = {
     "plastic": (52, 120, 220),  # blue
@@ -56,6 +54,3 @@ def colorize(labels: np.ndarray, class_names: Sequence[str]) -> np.ndarray:
         [np.array([BACKGROUND_COLOUR, IGNORE_COLOUR], dtype=np.uint8), class_colours(class_names)]
     )
     return table[labels.astype(np.int64) - BACKGROUND]
-
-
-__all__ = ["BACKGROUND", "IGNORE", "class_colours", "colorize"]
