@@ -160,6 +160,24 @@ def robust_weights(r: Tensor, loss: str, scale: float) -> tuple[Tensor, Tensor]:
     return w, rho
 
 
+@dataclass
+class _Linearisation:
+    """The alignment at one pose: object-frame points q, residuals r, SDF gradients g,
+    the prior error, the cost and the robust weights."""
+
+    obj_T_world: np.ndarray
+    q: Tensor
+    r: Tensor
+    g: Tensor
+    err: np.ndarray | None
+    cost: float
+    w: Tensor
+
+
+def _rms_mm(r: Tensor, weights: Tensor) -> float:
+    return 1e3 * float(torch.sqrt((weights * r * r).sum() / weights.sum()))
+
+
 class PoseTracker:
     """Levenberg-Marquardt alignment of world points to an object-frame SDF."""
 
@@ -236,6 +254,81 @@ class PoseTracker:
     def _prior_scale(self) -> np.ndarray:
         return np.array([1.0, 1.0, 1.0] + [self.rotation_scale] * 3)
 
+    def _prior_error(
+        self, pred_world_T_object: np.ndarray | None
+    ) -> Callable[[np.ndarray], np.ndarray | None]:
+        """object_T_world -> its left error against the prediction (None: no prior term)."""
+
+        def prior_error(t: np.ndarray) -> np.ndarray | None:
+            # Left error of object_T_world against the prediction: exp(xi) shifts it by ~xi.
+            if pred_world_T_object is None or self.prior_weight == 0:
+                return None
+            return se3_log(t @ pred_world_T_object)
+
+        return prior_error
+
+    def _evaluate(
+        self,
+        sdf_fn: Callable[[Tensor], Tensor],
+        obj_T_world: np.ndarray,
+        pts: Tensor,
+        weights: Tensor,
+        prior_error: Callable[[np.ndarray], np.ndarray | None],
+    ) -> _Linearisation:
+        q, r, g = self._linearise(sdf_fn, obj_T_world, pts)
+        err = prior_error(obj_T_world)
+        cost, w = self._cost(r, weights, err)
+        return _Linearisation(obj_T_world, q, r, g, err, cost, w)
+
+    def _normal_equations(
+        self, cur: _Linearisation, weights: Tensor, prior_h: np.ndarray
+    ) -> tuple[np.ndarray, np.ndarray]:
+        """Gauss-Newton H and b of the weighted residuals (and the prior) at `cur`."""
+        jac = torch.cat([cur.g, torch.linalg.cross(cur.q, cur.g)], dim=1)
+        norm = float(weights.sum())
+        h = ((jac * cur.w[:, None]).T @ jac).numpy() / norm
+        b = ((jac * cur.w[:, None]).T @ cur.r).numpy() / norm
+        if cur.err is not None:
+            h = h + prior_h
+            b = b + prior_h @ cur.err
+        return h, b
+
+    def _minimise(
+        self,
+        sdf_fn: Callable[[Tensor], Tensor],
+        cur: _Linearisation,
+        pts: Tensor,
+        weights: Tensor,
+        prior_error: Callable[[np.ndarray], np.ndarray | None],
+        info: dict,
+    ) -> _Linearisation:
+        """Levenberg-Marquardt from `cur`; counts iterations and evaluations in `info`."""
+        mu = self.damping
+        prior_h = self.prior_weight * np.diag(self._prior_scale() ** 2)
+        for it in range(self.iterations):
+            info["iterations"] = it + 1
+            h, b = self._normal_equations(cur, weights, prior_h)
+            step = None
+            while mu < 1e8:
+                lhs = h + mu * np.diag(np.diag(h) + 1e-12)
+                delta = -np.linalg.solve(lhs, b)
+                too_far = np.linalg.norm(delta[:3]) > self.max_step_m
+                if too_far or np.linalg.norm(delta[3:]) > self.max_step_rad:
+                    mu *= 10.0
+                    continue
+                cand = self._evaluate(
+                    sdf_fn, se3_exp(delta) @ cur.obj_T_world, pts, weights, prior_error
+                )
+                info["evaluations"] += 1
+                if cand.cost <= cur.cost:
+                    step, cur = delta, cand
+                    mu = max(mu / 10.0, 1e-9)
+                    break
+                mu *= 10.0
+            if step is None or np.linalg.norm(step) < self.tolerance:
+                break
+        return cur
+
     def track(
         self,
         points_world: Mapping[str, Tensor | np.ndarray],
@@ -261,54 +354,19 @@ class PoseTracker:
             info["skipped"] = f"too few points ({len(pts)} < {self.min_points})"
             log.warning("pose tracking kept the predicted pose: %s", info["skipped"])
             return fallback, info
-        pred_world_T_object = prior
-        obj_T_world = invert_pose(np.asarray(init_world_T_object, dtype=np.float64))
-
-        def prior_error(t: np.ndarray) -> np.ndarray | None:
-            # Left error of object_T_world against the prediction: exp(xi) shifts it by ~xi.
-            if pred_world_T_object is None or self.prior_weight == 0:
-                return None
-            return se3_log(t @ pred_world_T_object)
-
-        q, r, g = self._linearise(sdf_fn, obj_T_world, pts)
-        err = prior_error(obj_T_world)
-        cost, w = self._cost(r, weights, err)
-        info["initial_rms_mm"] = 1e3 * float(torch.sqrt((weights * r * r).sum() / weights.sum()))
-        mu = self.damping
-        prior_h = self.prior_weight * np.diag(self._prior_scale() ** 2)
-        for it in range(self.iterations):
-            info["iterations"] = it + 1
-            jac = torch.cat([g, torch.linalg.cross(q, g)], dim=1)
-            norm = float(weights.sum())
-            h = ((jac * w[:, None]).T @ jac).numpy() / norm
-            b = ((jac * w[:, None]).T @ r).numpy() / norm
-            if err is not None:
-                h = h + prior_h
-                b = b + prior_h @ err
-            step = None
-            while mu < 1e8:
-                lhs = h + mu * np.diag(np.diag(h) + 1e-12)
-                delta = -np.linalg.solve(lhs, b)
-                too_far = np.linalg.norm(delta[:3]) > self.max_step_m
-                if too_far or np.linalg.norm(delta[3:]) > self.max_step_rad:
-                    mu *= 10.0
-                    continue
-                cand = se3_exp(delta) @ obj_T_world
-                q_c, r_c, g_c = self._linearise(sdf_fn, cand, pts)
-                info["evaluations"] += 1
-                err_c = prior_error(cand)
-                cost_c, w_c = self._cost(r_c, weights, err_c)
-                if cost_c <= cost:
-                    step = delta
-                    obj_T_world, q, r, g, err, cost, w = cand, q_c, r_c, g_c, err_c, cost_c, w_c
-                    mu = max(mu / 10.0, 1e-9)
-                    break
-                mu *= 10.0
-            if step is None or np.linalg.norm(step) < self.tolerance:
-                break
-        info["final_rms_mm"] = 1e3 * float(torch.sqrt((weights * r * r).sum() / weights.sum()))
-        info["cost"] = cost
-        result = invert_pose(obj_T_world)
+        prior_error = self._prior_error(prior)
+        start = self._evaluate(
+            sdf_fn,
+            invert_pose(np.asarray(init_world_T_object, dtype=np.float64)),
+            pts,
+            weights,
+            prior_error,
+        )
+        info["initial_rms_mm"] = _rms_mm(start.r, weights)
+        best = self._minimise(sdf_fn, start, pts, weights, prior_error, info)
+        info["final_rms_mm"] = _rms_mm(best.r, weights)
+        info["cost"] = best.cost
+        result = invert_pose(best.obj_T_world)
         moved = float(np.linalg.norm(result[:3, 3] - fallback[:3, 3]))
         if not np.isfinite(result).all() or moved > self.max_motion_m:
             info["skipped"] = f"diverged ({moved:.3g} m from the prediction)"
