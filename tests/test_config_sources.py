@@ -159,6 +159,7 @@ def test_every_optimizer_setting_is_an_argument_of_its_target() -> None:
 
 def test_every_mapping_setting_is_read_by_the_map_task() -> None:
     """`mapping.<key>` of MappingConfig's own keys is read where the task wires the run."""
-    source = (REPO_DIR / "neuralfeels_sem" / "tasks" / "map.py").read_text()
+    tasks = REPO_DIR / "neuralfeels_sem" / "tasks"
+    source = (tasks / "map.py").read_text() + (tasks / "build.py").read_text()
     for f in _fields(MappingConfig):
         assert re.search(rf"cfg\.mapping\.{f.name}\b", source), f"mapping.{f.name} is read nowhere"

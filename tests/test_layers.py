@@ -24,6 +24,7 @@ LAYERS: list[tuple[str, ...]] = [
     ("sensors",),  # Sensor interface and backends (sim/ wraps the simulator)
     ("eval",),  # scores a field against an object
     ("viz",),  # pictures of what eval measured
+    ("pipeline",),  # runs across the layers (the mapping session), built from objects
     ("configs",),  # Hydra schemas: registers the configs that live beside their classes
     ("tasks",),  # wiring: compose config -> instantiate -> call (+ runner, callbacks)
     ("bench",),  # benchmarks and rig diagnostics

@@ -5,7 +5,7 @@ defaults and range checks: MapperConfig in mapping/mapper.py (with TactileDepthC
 from perception/tactile_depth.py), OptimizerConfig in fields/optim.py, TrackerConfig in
 mapping/pose_tracker.py. The map task builds the mapper as
     OnlineMapper(to_config(MapperConfig, cfg.mapping.mapper), field, instantiate(cfg.mapping.optimizer), device)
-(tasks/map.py build_mapper); the optimizer node is a `_partial_` FieldAdam factory.
+(tasks/build.py build_mapper); the optimizer node is a `_partial_` FieldAdam factory.
 """
 
 from __future__ import annotations

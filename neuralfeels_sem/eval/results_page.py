@@ -191,7 +191,7 @@ def load_source(path: Path) -> Source:
 
 # ---------------------------------------------------------------------------- oracles
 def oracles_from_config(config: dict) -> list[str]:
-    """The oracles a run used, from its composed config (as tasks/map.py records them)."""
+    """The oracles a run used, from its composed config (as tasks/build.py oracles_used records them)."""
     sensor = config.get("sensor") or {}
     if sensor.get("name") != "sim":
         return []

@@ -7,7 +7,7 @@ The SDF MLP predicts distance in normalised units and the field returns it in me
 (times `bound`), so a unit-norm gradient in metres is the eikonal condition.
 
 `bound` is not a setting: the map task computes it from the object (BOUND_MARGIN times
-its bounding radius, tasks/map.py) and passes it beside the config.
+its bounding radius, tasks/build.py) and passes it beside the config.
 """
 
 from __future__ import annotations

@@ -20,13 +20,8 @@ from omegaconf import DictConfig, OmegaConf
 
 from neuralfeels_sem.core.errors import ConfigError, DataError
 from neuralfeels_sem.mapping.checkpoint import load_checkpoint
-from neuralfeels_sem.tasks.map import (
-    BOUND_MARGIN,
-    _json_default,
-    build_mapper,
-    build_scorer,
-    model_config,
-)
+from neuralfeels_sem.pipeline.run_outputs import write_metrics
+from neuralfeels_sem.tasks.build import BOUND_MARGIN, build_mapper, build_scorer, model_config
 from neuralfeels_sem.utils.device import resolve_device
 from neuralfeels_sem.viz.run_report import print_summary, write_pictures
 
@@ -95,7 +90,7 @@ def run(cfg: DictConfig) -> dict:
     metrics.setdefault("frames", resumed["frame_index"] + 1)
     metrics.setdefault("wall_s", 0.0)
     metrics.setdefault("realtime_factor", None)
-    (out / "metrics.json").write_text(json.dumps(metrics, indent=2, default=_json_default))
+    write_metrics(metrics, out / "metrics.json")
     if cfg.viz.plots:
         write_pictures(scorer.class_names, metrics, run_dir / "progression", out, int(cfg.viz.dpi))
     print_summary(metrics, out)

@@ -9,16 +9,15 @@ import pytest
 import torch
 
 from neuralfeels_sem.core.errors import DataError
-from neuralfeels_sem.perception.classifier import train as train_module
+from neuralfeels_sem.perception.classifier import fit as fit_module
 from neuralfeels_sem.perception.classifier.checkpoint import load_checkpoint
-from neuralfeels_sem.perception.classifier.model import build_model
-from neuralfeels_sem.perception.classifier.train import (
+from neuralfeels_sem.perception.classifier.fit import (
     BEST,
     LAST,
     TrainSettings,
     recalibrate_batchnorm,
-    train,
 )
+from neuralfeels_sem.perception.classifier.model import build_model
 from neuralfeels_sem.perception.classifier.transforms import (
     IMAGENET_MEAN,
     IMAGENET_STD,
@@ -57,7 +56,7 @@ def fit(
         seed=0,
         lr_schedule=lr_schedule,
     )
-    return train(
+    return fit_module.fit(
         build_model(4),
         *arrays,
         settings,
@@ -106,17 +105,17 @@ def test_resumed_cosine_run_follows_the_same_schedule(
     arrays, tmp_path: Path, monkeypatch: pytest.MonkeyPatch
 ) -> None:
     straight = fit(arrays, tmp_path / "straight", max_epochs=2, lr_schedule="cosine")
-    save_last = train_module._save_last
+    save_last = fit_module._save_last
 
     def stop_after_first_epoch(path, model, optimizer, generator, state):
         save_last(path, model, optimizer, generator, state)
         if state["epoch"] == 1:
             raise KeyboardInterrupt  # the run is killed once epoch 1 is on disk
 
-    monkeypatch.setattr(train_module, "_save_last", stop_after_first_epoch)
+    monkeypatch.setattr(fit_module, "_save_last", stop_after_first_epoch)
     with pytest.raises(KeyboardInterrupt):
         fit(arrays, tmp_path / "cut", max_epochs=2, lr_schedule="cosine")
-    monkeypatch.setattr(train_module, "_save_last", save_last)
+    monkeypatch.setattr(fit_module, "_save_last", save_last)
     resumed = fit(arrays, tmp_path / "cut", max_epochs=2, resume=True, lr_schedule="cosine")
     assert resumed.resumed_from_epoch == 1
     assert resumed.history == straight.history

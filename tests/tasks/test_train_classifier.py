@@ -9,7 +9,7 @@ import pytest
 
 from neuralfeels_sem.core.errors import ConfigError
 from neuralfeels_sem.perception.classifier.checkpoint import load_checkpoint
-from neuralfeels_sem.tasks.train_classifier import resume_path
+from neuralfeels_sem.perception.classifier.train import resume_path
 from tests.helpers import run_cli
 from tests.perception.synthetic_tactile import CLASSES, SENSORS, make_dataset
 

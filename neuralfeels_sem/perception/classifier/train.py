@@ -1,295 +1,236 @@
-"""Training loop: AdamW, augmentation, early stopping on validation accuracy, resumable.
+"""A training run of the tactile material classifier, from an image folder to classifier.pt.
 
-The run directory holds `last.pt` (model, optimiser, epoch, RNG and early-stopping
-state, written after every epoch) and `best.pt` (the best model so far, in the
-`classifier.pt` format). A run that finds `last.pt` continues from the next epoch
-with the same random stream, so an interrupted run ends where an uninterrupted one
-would.
+Scans `<root>/<sensor>/<material>/<id>.png`, caps and splits it (stratified by sensor and
+class), trains with `fit.fit` (resumable from last.pt), scores the best epoch on the
+validation and test sets and exports it. Writes into `run_dir`: classifier.pt (weights,
+class names, input size, normalisation), report.json (test_accuracy, val_accuracy,
+per_sensor, confusion, ...), confusion.png, per_sensor.png, split.json (which file went
+where), history.json, best.pt and last.pt.
 """
 
 from __future__ import annotations
 
 import json
 import logging
-import math
-from dataclasses import asdict, dataclass, field
+import os
+from dataclasses import asdict, dataclass
 from pathlib import Path
 
 import numpy as np
 import torch
-import torch.nn.functional as F
-from torch import nn
-from tqdm import tqdm
 
-from neuralfeels_sem.core.errors import DataError
-from neuralfeels_sem.perception.classifier.checkpoint import save_checkpoint
+from neuralfeels_sem.core.errors import ConfigError, DataError
+from neuralfeels_sem.perception.classifier.checkpoint import load_checkpoint, save_checkpoint
+from neuralfeels_sem.perception.classifier.dataset import (
+    LoadedSet,
+    Sample,
+    class_counts,
+    load_backgrounds,
+    load_samples,
+    press_kinds,
+    resolve_path,
+    scan_dataset,
+    stratified_split,
+)
+from neuralfeels_sem.perception.classifier.evaluate import (
+    per_press_kind,
+    predict_in_batches,
+    test_report,
+    write_report,
+)
+from neuralfeels_sem.perception.classifier.fit import BEST, LAST, TrainResult, TrainSettings, fit
+from neuralfeels_sem.perception.classifier.infer import MaterialClassifier
 from neuralfeels_sem.perception.classifier.predict import predict_probs
-from neuralfeels_sem.perception.classifier.transforms import augment, normalize, to_tensor
+from neuralfeels_sem.perception.classifier.transforms import IMAGENET_MEAN, IMAGENET_STD
+from neuralfeels_sem.utils.device import resolve_device
 
 log = logging.getLogger(__name__)
 
-LAST = "last.pt"
-BEST = "best.pt"
-LR_SCHEDULES = ("constant", "cosine")
-
 
 @dataclass
-class TrainSettings:
-    batch_size: int = 32
-    lr: float = 3e-4
-    weight_decay: float = 1e-5
-    max_epochs: int = 100
-    patience: int = 10
-    rotation_deg: float = 30.0
-    brightness: float = 0.2
-    contrast: float = 0.2
-    color_gain: float = 0.1
-    seed: int = 0
-    lr_schedule: str = "constant"  # constant | cosine (to min_lr_ratio * lr at max_epochs)
-    min_lr_ratio: float = 0.01
+class DataSettings:
+    """Which images to train on (the dataset config group)."""
 
-    def __post_init__(self) -> None:
-        if self.lr_schedule not in LR_SCHEDULES:
-            raise ValueError(f"lr_schedule={self.lr_schedule!r} is not one of {LR_SCHEDULES}")
-        if not 0.0 <= self.min_lr_ratio <= 1.0:
-            raise ValueError(f"min_lr_ratio={self.min_lr_ratio} must be in [0, 1]")
-
-    def lr_at(self, progress: float) -> float:
-        """Learning rate at `progress` = finished share of max_epochs (0 .. 1)."""
-        if self.lr_schedule == "constant":
-            return self.lr
-        floor = self.min_lr_ratio * self.lr
-        return floor + 0.5 * (self.lr - floor) * (1.0 + math.cos(math.pi * min(progress, 1.0)))
+    root: str
+    extensions: tuple[str, ...]
+    max_per_group: int | None = None
+    split: tuple[float, float, float] = (0.7, 0.15, 0.15)  # train, val, test
 
 
-@dataclass
-class TrainResult:
-    best_epoch: int  # 1-based epoch whose model is in best.pt
-    best_val_accuracy: float
-    epochs_run: int
-    stopped_early: bool
-    resumed_from_epoch: int
-    history: list[dict] = field(default_factory=list)
+def cap_per_group(samples: list[Sample], max_per_group: int | None, seed: int) -> list[Sample]:
+    """At most max_per_group samples per (sensor, class), chosen with a fixed seed."""
+    if max_per_group is None:
+        return samples
+    rng = np.random.default_rng(seed)
+    groups: dict[tuple[str, int], list[Sample]] = {}
+    for s in samples:
+        groups.setdefault((s.sensor, s.label), []).append(s)
+    kept = []
+    for key in sorted(groups):
+        members = groups[key]
+        pick = sorted(rng.permutation(len(members))[:max_per_group])
+        kept.extend(members[i] for i in pick)
+    return kept
 
 
-def train(
-    model: nn.Module,
-    train_images: np.ndarray,
-    train_labels: np.ndarray,
-    val_images: np.ndarray,
-    val_labels: np.ndarray,
+def resume_path(resume: str, run_dir: Path) -> Path | None:
+    """last.pt to continue from: `auto` (the run dir's, if any), `never`, or a path."""
+    if resume == "never":
+        return None
+    if resume == "auto":
+        return run_dir / LAST if (run_dir / LAST).is_file() else None
+    path = resolve_path(resume)
+    path = path / LAST if path.is_dir() else path
+    if not path.is_file():
+        raise ConfigError(
+            f"task.resume={resume}: no {LAST} there; give a run directory of task=train_classifier"
+        )
+    return path
+
+
+def train_classifier(
+    classifier: MaterialClassifier,
+    data: DataSettings,
     settings: TrainSettings,
     run_dir: Path,
-    class_names: list[str],
-    input_size: int,
-    mean: list[float],
-    std: list[float],
-    device: torch.device,
-    resume_from: Path | None = None,
-    checkpoint_meta: dict | None = None,
-) -> TrainResult:
-    """Train in place; the best model (by validation accuracy) ends up in run_dir/best.pt.
-
-    `checkpoint_meta` goes into every saved checkpoint's meta (e.g. `crop_px`, which
-    inference needs to preprocess as training did, so best.pt is usable on its own).
-    """
-    if len(train_images) < 2 or len(val_images) < 1:
-        raise DataError(
-            f"too few images to train ({len(train_images)} train, {len(val_images)} validation); collect more"
-        )
-    if train_images.shape[1:3] != (input_size, input_size):
-        raise ValueError(f"train images {train_images.shape} are not at input_size {input_size}")
-    run_dir.mkdir(parents=True, exist_ok=True)
-    model.to(device)
-    optimizer = torch.optim.AdamW(
-        model.parameters(), lr=settings.lr, weight_decay=settings.weight_decay
-    )
-    generator = torch.Generator().manual_seed(settings.seed)
-    state = {"epoch": 0, "best_val": -1.0, "best_epoch": 0, "since_best": 0, "history": []}
-    if resume_from is not None:
-        state = _restore(resume_from, model, optimizer, generator)
-        log.info("resuming from %s after epoch %d", resume_from, state["epoch"])
-    resumed_from = state["epoch"]
-    meta = {**(checkpoint_meta or {}), "settings": asdict(settings)}
-
-    n = len(train_images)
-    steps = (n + settings.batch_size - 1) // settings.batch_size
-    stopped = state["since_best"] >= settings.patience
-    epochs = tqdm(
-        range(state["epoch"], settings.max_epochs),
-        initial=state["epoch"],
-        total=settings.max_epochs,
-        desc="epochs",
-        unit="epoch",
-    )
-    for epoch in epochs:
-        if stopped:
-            break
-        model.train()
-        order = torch.randperm(n, generator=generator).numpy()
-        loss_sum, correct, seen = 0.0, 0, 0
-        bar = tqdm(
-            range(steps), desc=f"epoch {epoch + 1}/{settings.max_epochs}", unit="batch", leave=False
-        )
-        for step in bar:
-            idx = order[step * settings.batch_size : (step + 1) * settings.batch_size]
-            if len(idx) < 2:  # BatchNorm cannot train on a batch of one
-                continue
-            # A function of the global step, so a resumed run follows the same schedule.
-            lr = settings.lr_at((epoch * steps + step) / (settings.max_epochs * steps))
-            for group in optimizer.param_groups:
-                group["lr"] = lr
-            x = to_tensor(train_images[idx]).to(device)
-            x = augment(
-                x,
-                generator,
-                settings.rotation_deg,
-                settings.brightness,
-                settings.contrast,
-                settings.color_gain,
-            )
-            y = torch.from_numpy(train_labels[idx]).to(device)
-            logits = model(normalize(x, mean, std))
-            loss = F.cross_entropy(logits, y)
-            optimizer.zero_grad(set_to_none=True)
-            loss.backward()
-            optimizer.step()
-            loss_sum += float(loss.detach()) * len(idx)
-            correct += int((logits.argmax(1) == y).sum())
-            seen += len(idx)
-            bar.set_postfix(loss=f"{loss_sum / seen:.3f}", acc=f"{correct / seen:.3f}")
-        recalibrate_batchnorm(model, train_images, mean, std, device, settings.batch_size)
-        val_pred = predict_probs(model, val_images, mean, std, device).argmax(1)
-        val_acc = float((val_pred == val_labels).mean())
-        record = {
-            "epoch": epoch + 1,
-            "train_loss": loss_sum / max(seen, 1),
-            "train_accuracy": correct / max(seen, 1),
-            "val_accuracy": val_acc,
-            "lr_end": float(optimizer.param_groups[0]["lr"]),
-        }
-        state["history"].append(record)
-        if val_acc > state["best_val"]:
-            state.update(best_val=val_acc, best_epoch=epoch + 1, since_best=0)
-            save_checkpoint(
-                run_dir / BEST,
-                model,
-                class_names,
-                input_size,
-                mean,
-                std,
-                meta={**meta, "epoch": epoch + 1, "val_accuracy": val_acc},
-            )
-        else:
-            state["since_best"] += 1
-        state["epoch"] = epoch + 1
-        _save_last(run_dir / LAST, model, optimizer, generator, state)
-        epochs.set_postfix(
-            loss=f"{record['train_loss']:.3f}",
-            acc=f"{record['train_accuracy']:.3f}",
-            val=f"{val_acc:.3f}",
-            best=f"{state['best_val']:.3f}",
-        )
-        log.info(
-            "epoch %d: loss %.4f, train acc %.4f, val acc %.4f (best %.4f @ %d)",
-            epoch + 1,
-            record["train_loss"],
-            record["train_accuracy"],
-            val_acc,
-            state["best_val"],
-            state["best_epoch"],
-        )
-        stopped = state["since_best"] >= settings.patience
-        if stopped:
-            log.info("early stop: no better validation accuracy for %d epochs", settings.patience)
-    epochs.close()
-    (run_dir / "history.json").write_text(json.dumps(state["history"], indent=2))
-    if state["best_epoch"] == 0:
-        raise DataError(
-            f"no epoch was trained (task.max_epochs={settings.max_epochs}); raise max_epochs"
-        )
-    return TrainResult(
-        best_epoch=state["best_epoch"],
-        best_val_accuracy=state["best_val"],
-        epochs_run=state["epoch"],
-        stopped_early=stopped,
-        resumed_from_epoch=resumed_from,
-        history=state["history"],
-    )
-
-
-def recalibrate_batchnorm(
-    model: nn.Module,
-    images: np.ndarray,
-    mean: list[float],
-    std: list[float],
-    device: torch.device,
-    batch_size: int,
-    max_images: int = 256,
-) -> None:
-    """Recompute BatchNorm running statistics for the current weights ("precise BN").
-
-    Running averages lag behind fast-changing weights; early in training from scratch
-    the eval-mode network is then near chance although the train-mode one already fits
-    (measured here: 100 % train-mode vs 25 % eval-mode accuracy on the same images).
-    Plain averages over a fixed, evenly spread subset of un-augmented training images
-    make validation, early stopping and the saved model use statistics that match.
-    """
-    norms = [m for m in model.modules() if isinstance(m, nn.modules.batchnorm._BatchNorm)]
-    if not norms:
-        return
-    idx = np.linspace(0, len(images) - 1, min(max_images, len(images))).round().astype(int)
-    momenta = [m.momentum for m in norms]
-    for m in norms:
-        m.reset_running_stats()
-        m.momentum = None  # cumulative average over the batches below
-    model.train()
-    with torch.no_grad():
-        for start in range(0, len(idx), batch_size):
-            batch = idx[start : start + batch_size]
-            if len(batch) < 2:
-                continue
-            model(normalize(to_tensor(images[batch]).to(device), mean, std))
-    for m, momentum in zip(norms, momenta):
-        m.momentum = momentum
-    model.eval()
-
-
-def _save_last(
-    path: Path,
-    model: nn.Module,
-    optimizer: torch.optim.Optimizer,
-    generator: torch.Generator,
-    state: dict,
-) -> None:
-    payload = {
-        "model": {k: v.detach().cpu() for k, v in model.state_dict().items()},
-        "optimizer": optimizer.state_dict(),
-        "generator": generator.get_state(),
-        # Dropout and drop-connect draw from torch's global RNG.
-        "torch_rng": torch.get_rng_state(),
-        "cuda_rng": torch.cuda.get_rng_state_all() if torch.cuda.is_available() else [],
-        "state": state,
-    }
-    tmp = path.with_suffix(".tmp")
-    torch.save(payload, tmp)
-    tmp.replace(path)
-
-
-def _restore(
-    path: Path, model: nn.Module, optimizer: torch.optim.Optimizer, generator: torch.Generator
+    device_name: str = "auto",
+    resume: str = "auto",
+    export_fp16: bool = False,
 ) -> dict:
-    try:
-        payload = torch.load(path, map_location="cpu", weights_only=True)
-        model.load_state_dict(payload["model"])
-        optimizer.load_state_dict(payload["optimizer"])
-    except (RuntimeError, KeyError, ValueError) as exc:
-        raise DataError(
-            f"cannot resume from {path} ({exc.__class__.__name__}: {str(exc).splitlines()[0]}); "
-            "delete it or set task.resume=never"
-        ) from exc
-    generator.set_state(payload["generator"])
-    torch.set_rng_state(payload["torch_rng"])
-    if torch.cuda.is_available() and payload.get("cuda_rng"):
-        torch.cuda.set_rng_state_all(payload["cuda_rng"])
-    return payload["state"]
+    """Train `classifier`'s model on `data` (seeded by settings.seed); returns the report."""
+    class_names = list(classifier.class_names)
+    size, crop_px = classifier.input_size, classifier.crop_px
+    loaded, parts = _load_and_split(data, class_names, size, crop_px, settings.seed, run_dir)
+    device = _device(device_name)
+    mean, std = list(IMAGENET_MEAN), list(IMAGENET_STD)
+    tr, va = parts["train"], parts["val"]
+    result = fit(
+        classifier.new_model(),
+        loaded.images[tr],
+        loaded.labels[tr],
+        loaded.images[va],
+        loaded.labels[va],
+        settings,
+        run_dir,
+        class_names,
+        size,
+        mean,
+        std,
+        device,
+        resume_path(resume, run_dir),
+        checkpoint_meta={"crop_px": crop_px},
+    )
+    model = load_checkpoint(run_dir / BEST).build(device)
+
+    def predict(batch: np.ndarray) -> np.ndarray:
+        return predict_probs(model, batch, mean, std, device)
+
+    report = _report(predict, loaded, parts, data.root, class_names)
+    report["training"] = {
+        **asdict(settings),
+        "input_size": size,
+        "crop_px": crop_px,
+        "device": str(device),
+        "weights": classifier.weights,
+        **_outcome(result),
+    }
+    meta = {
+        "crop_px": crop_px,
+        "val_accuracy": report["val_accuracy"],
+        "test_accuracy": report["test_accuracy"],
+        "per_sensor": report["per_sensor"],
+        "data_root": report["data"]["root"],
+        "training": report["training"],
+    }
+    save_checkpoint(
+        run_dir / "classifier.pt", model, class_names, size, mean, std, meta=meta, fp16=export_fp16
+    )
+    _write(report, run_dir)
+    return report
+
+
+def _write(report: dict, run_dir: Path) -> None:
+    write_report(report, run_dir, "test set")
+    log.info(
+        "test accuracy %.4f, val accuracy %.4f, per sensor %s; wrote %s",
+        report["test_accuracy"],
+        report["val_accuracy"],
+        {k: round(v, 4) for k, v in report["per_sensor"].items()},
+        run_dir,
+    )
+
+
+def _load_and_split(
+    data: DataSettings, class_names: list[str], size: int, crop_px: int, seed: int, run_dir: Path
+) -> tuple[LoadedSet, dict[str, np.ndarray]]:
+    """Scan, cap, load and split the images; writes split.json."""
+    samples = scan_dataset(
+        data.root, class_names, require_all_classes=True, extensions=tuple(data.extensions)
+    )
+    samples = cap_per_group(samples, data.max_per_group, seed)
+    loaded = load_samples(
+        samples, size, crop_px=crop_px, backgrounds=load_backgrounds(data.root) if crop_px else None
+    )
+    parts = stratified_split(loaded.labels, loaded.sensors, tuple(data.split), seed)
+    for name in ("train", "val", "test"):
+        if len(parts[name]) == 0:
+            raise DataError(
+                f"the {name} split of dataset.root={data.root} is empty; collect more images"
+            )
+    log.info(
+        "images: %d train, %d val, %d test at %dx%d",
+        *(len(parts[k]) for k in ("train", "val", "test")),
+        size,
+        size,
+    )
+    root = resolve_path(data.root)
+    (run_dir / "split.json").write_text(
+        json.dumps(
+            {
+                k: [str(Path(loaded.paths[i]).relative_to(root)) for i in v]
+                for k, v in parts.items()
+            },
+            indent=1,
+        )
+    )
+    return loaded, parts
+
+
+def _device(name: str) -> torch.device:
+    device = resolve_device(name)
+    if device.type == "cpu" and os.environ.get("OMP_NUM_THREADS", "").isdigit():
+        # All cores by default; an explicit OMP_NUM_THREADS wins (a shared, busy machine
+        # trains faster on fewer threads than on oversubscribed ones).
+        torch.set_num_threads(int(os.environ["OMP_NUM_THREADS"]))
+    return device
+
+
+def _report(predict, loaded: LoadedSet, parts: dict, data_root: str, class_names) -> dict:
+    """Test-set report of the best model, with its validation accuracy and the data counts."""
+    va, te = parts["val"], parts["test"]
+    val_pred = predict_in_batches(predict, loaded.images[va], 64, "validation")
+    test_pred = predict_in_batches(predict, loaded.images[te], 64, "test")
+    report = test_report(loaded.labels[te], test_pred, loaded.sensors[te], class_names)
+    report["val_accuracy"] = float((val_pred == loaded.labels[va]).mean())
+    kinds = press_kinds(data_root, loaded.paths)
+    if kinds is not None:
+        report["per_press_kind"] = per_press_kind(loaded.labels[te], test_pred, kinds[te])
+    report["counts"] = {"train": len(parts["train"]), "val": len(va), "test": len(te)}
+    report["data"] = {
+        "root": str(resolve_path(data_root)),
+        "images": len(loaded.labels),
+        "skipped_unreadable": loaded.skipped_unreadable,
+        "skipped_files": loaded.skipped_files,
+        "resized_wrong_size": loaded.resized_wrong_size,
+        "per_sensor_class": class_counts(loaded.labels, loaded.sensors, class_names),
+    }
+    return report
+
+
+def _outcome(result: TrainResult) -> dict:
+    return {
+        "best_epoch": result.best_epoch,
+        "epochs_run": result.epochs_run,
+        "stopped_early": result.stopped_early,
+        "resumed_from_epoch": result.resumed_from_epoch,
+    }

@@ -1,0 +1,57 @@
+"""Files of the run-output contract (docs/design.md) that are not pictures: metrics.json,
+touches.csv, and what a timing depends on."""
+
+from __future__ import annotations
+
+import csv
+import json
+import os
+import platform
+from pathlib import Path
+
+import numpy as np
+
+
+def machine_info(device) -> dict:
+    """What a timing depends on: the machine, its load and the threads torch used."""
+    import torch
+
+    return {
+        "cpu": platform.processor() or platform.machine(),
+        "cpus": os.cpu_count(),
+        "torch_threads": torch.get_num_threads(),
+        "device": str(device),
+    }
+
+
+def load_avg() -> list[float]:
+    """The 1, 5 and 15 minute load averages now."""
+    return [round(x, 2) for x in os.getloadavg()]
+
+
+def write_metrics(metrics: dict, path: Path) -> None:
+    path.write_text(json.dumps(metrics, indent=2, default=json_default))
+
+
+def write_touches(touch_log: list[list], class_names: list[str], path: Path) -> None:
+    with path.open("w", newline="") as f:
+        writer = csv.writer(f)
+        writer.writerow(["frame", "finger", "predicted", "ground_truth", "confidence"])
+        for frame, finger, predicted, gt, confidence in touch_log:
+            writer.writerow(
+                [
+                    frame,
+                    finger,
+                    class_names[predicted] if predicted >= 0 else "none",
+                    class_names[gt] if gt >= 0 else "unknown",
+                    f"{confidence:.3f}",
+                ]
+            )
+
+
+def json_default(value):
+    if isinstance(value, np.generic):
+        return value.item()
+    if isinstance(value, np.ndarray):
+        return value.tolist()
+    raise TypeError(f"{type(value).__name__} is not JSON serialisable")

@@ -1,0 +1,61 @@
+"""Config -> the objects of a mapping run, shared by task=map and task=eval."""
+
+from __future__ import annotations
+
+from hydra.utils import instantiate
+from omegaconf import DictConfig, OmegaConf
+
+from neuralfeels_sem.configs import to_config
+from neuralfeels_sem.eval.run_scorer import RunScorer
+from neuralfeels_sem.fields.semantic_field import SemanticField, SemanticFieldConfig
+from neuralfeels_sem.mapping.mapper import MapperConfig, OnlineMapper
+
+# The field's half-extent is BOUND_MARGIN times the object's bounding radius (computed per
+# object, not a setting): the truncation band and free-space samples just outside the
+# surface must stay inside the hash grid.
+BOUND_MARGIN = 1.15
+
+
+def build_scorer(cfg: DictConfig, obj) -> RunScorer:
+    e = cfg.eval
+    return RunScorer(
+        obj,
+        num_surface_samples=e.num_surface_samples,
+        image_views=e.image_views,
+        image_size=e.image_size,
+        image_elevation_deg=e.image_elevation_deg,
+        fscore_thresholds_mm=list(e.fscore_thresholds_mm),
+        shape_samples=e.shape_samples,
+        mesh_resolution=e.mesh_resolution,
+        seed=e.seed,
+        mesh_match_tolerance_m=e.mesh_match_tolerance_m,
+    )
+
+
+def build_mapper(cfg: DictConfig, bound: float, device) -> OnlineMapper:
+    """The field (cube half-extent `bound`, from the object) and its online mapper."""
+    field = SemanticField(to_config(SemanticFieldConfig, cfg.model), bound)
+    optimizer_factory = instantiate(cfg.mapping.optimizer)  # a partial FieldAdam
+    return OnlineMapper(
+        to_config(MapperConfig, cfg.mapping.mapper), field, optimizer_factory, device
+    )
+
+
+def model_config(cfg: DictConfig) -> dict:
+    """What a checkpoint must match to resume: the composed model config."""
+    return OmegaConf.to_container(cfg.model, resolve=True)
+
+
+def oracles_used(cfg: DictConfig) -> list[str]:
+    """The simulator's ground truth a run's perception or pose used (a real rig has none)."""
+    if cfg.sensor.name != "sim":
+        return []
+    mapper = cfg.mapping.mapper
+    used = {
+        "object_pose": cfg.mapping.pose == "gt",
+        "camera_mask": bool(mapper.get("use_camera_mask", False)),
+        "tactile_contact_depth": mapper.get("tactile_depth", {}).get("source") == "gt",
+        "noise_free_depth": float(cfg.sensor.get("rgbd", {}).get("depth_noise_std", 0.0)) == 0.0,
+        "material_labels": str(cfg.classifier.get("_target_", "")).endswith("OracleClassifier"),
+    }
+    return [name for name, on in used.items() if on]
