@@ -444,20 +444,24 @@ def settings_table(source: Source, runs: Sequence[Run]) -> list[str]:
 
 # ---------------------------------------------------------------------------- sources
 def machine_text(runs: Sequence[Run]) -> str:
-    seen = []
+    """The machines the runs used (each once) and the range of their 1-minute load averages."""
+    machines, loads = [], []
     for run in runs:
         machine, load = run.metrics.get("machine"), run.metrics.get("load_avg")
-        parts = []
         if isinstance(machine, dict):
-            parts.append(", ".join(f"{k} {v}" for k, v in machine.items()))
-        elif machine:
-            parts.append(str(machine))
-        if load is not None:
-            parts.append(f"load average {load}")
-        text = "; ".join(parts)
-        if text and text not in seen:
-            seen.append(text)
-    return " | ".join(seen) if seen else "not recorded"
+            machine = ", ".join(f"{k} {v}" for k, v in machine.items())
+        if machine and str(machine) not in machines:
+            machines.append(str(machine))
+        if isinstance(load, list | tuple) and load:
+            load = load[0]
+        if isinstance(load, int | float):
+            loads.append(float(load))
+    parts = [" | ".join(machines)] if machines else []
+    if loads:
+        low, high = min(loads), max(loads)
+        span = f"{low:.1f}" if low == high else f"{low:.1f}-{high:.1f}"
+        parts.append(f"1-minute load average at the end of the runs {span}")
+    return "; ".join(parts) if parts else "not recorded"
 
 
 def plural(n: int, word: str) -> str:

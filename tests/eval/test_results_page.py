@@ -210,7 +210,7 @@ def test_single_run_oracles_come_from_its_config(tmp_path: Path) -> None:
     (run / ".hydra").mkdir(parents=True)
     (run / ".hydra" / "config.yaml").write_text(yaml.safe_dump(SIM_CONFIG))
     (run / ".hydra" / "overrides.yaml").write_text(yaml.safe_dump(["sensor=sim"]))
-    metrics = run_metrics(70.0, 97.0, 50.0, 96.0, "fabric", machine={"cpus": 2}, load_avg=1.2)
+    metrics = run_metrics(70.0, 97.0, 50.0, 96.0, "fabric", machine={"cpus": 2}, load_avg=[1.2, 0.9, 0.7])
     metrics["config"] = {"object": "plushie", "seed": 0}
     (run / "metrics.json").write_text(json.dumps(metrics))
     page = generate(tmp_path, run)
@@ -225,7 +225,7 @@ def test_single_run_oracles_come_from_its_config(tmp_path: Path) -> None:
     for words in ("ground-truth object pose", "camera object mask", "contact depth", "noise-free"):
         assert words in line
     assert "ground-truth material labels" not in line
-    assert "machine/load: cpus 2; load average 1.2" in line
+    assert "machine/load: cpus 2; 1-minute load average at the end of the runs 1.2" in line
 
 
 def test_bad_input_is_one_line_and_exit_code_2(
