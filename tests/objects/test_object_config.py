@@ -5,7 +5,6 @@ from __future__ import annotations
 import pytest
 from hydra.errors import InstantiationException
 from hydra.utils import instantiate
-from omegaconf import OmegaConf
 
 from neuralfeels_sem.configs import validate_config
 from neuralfeels_sem.configs.object import SHIPPED_OBJECTS, TACTILE_DATA_OBJECTS
@@ -105,7 +104,7 @@ def test_shipped_objects_have_no_marker_layout_and_a_layout_still_instantiates()
 def test_tactile_data_objects_exclude_the_later_objects() -> None:
     # The shipped classifier was trained on touches of these seven; objects added since
     # (patchwork, kitchen_tool) must not change task=collect_tactile's data set.
-    task = OmegaConf.load(CONF_DIR / "task" / "collect_tactile.yaml")
+    task = compose_config(["task=collect_tactile"]).task
     assert list(task.library_objects) == list(TACTILE_DATA_OBJECTS)
     assert CollectTactileTaskConfig().library_objects == list(TACTILE_DATA_OBJECTS)
     assert set(TACTILE_DATA_OBJECTS) < set(SHIPPED_OBJECTS)
