@@ -30,12 +30,13 @@ from scipy.spatial import cKDTree
 from neuralfeels_sem.configs.sensor_sim import SimSensorConfig
 from neuralfeels_sem.core.digit import GEL_DISTANCE_M
 from neuralfeels_sem.core.hand import FINGERS
+from neuralfeels_sem.core.materials import DEFAULT_MATERIALS
 from neuralfeels_sem.objects.library import make_object
 from neuralfeels_sem.objects.material_object import MaterialObject
 from neuralfeels_sem.objects.procedural import RECIPES
 from neuralfeels_sem.sim.rig import SimRig
 
-CLASSES = ("plastic", "metal", "fabric", "wood")
+CLASSES = tuple(DEFAULT_MATERIALS)
 MIN_PIXELS = 50  # contact pixels (of 76,800) for a frame to count as a touch
 
 

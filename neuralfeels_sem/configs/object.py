@@ -7,7 +7,7 @@ from pathlib import Path
 
 from omegaconf import MISSING, OmegaConf
 
-from neuralfeels_sem.configs.root import DEFAULT_MATERIALS
+from neuralfeels_sem.core.materials import DEFAULT_MATERIALS
 
 # The shipped objects (neuralfeels_sem.objects.procedural.RECIPES; a test keeps both equal).
 SHIPPED_OBJECTS = (

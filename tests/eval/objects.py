@@ -5,9 +5,10 @@ from __future__ import annotations
 import numpy as np
 import trimesh
 
+from neuralfeels_sem.core.materials import DEFAULT_MATERIALS
 from neuralfeels_sem.objects.material_object import IGNORE, MaterialObject
 
-CLASSES = ("plastic", "metal", "fabric", "wood")
+CLASSES = tuple(DEFAULT_MATERIALS)
 RADIUS = 0.05
 CAP_Z = 0.8 * RADIUS  # faces above this height (both poles) are outside the regions of interest
 

@@ -8,9 +8,10 @@ import pytest
 from neuralfeels_sem.core.digit import DIGIT_HEIGHT, DIGIT_WIDTH
 from neuralfeels_sem.core.frame import TactileReading
 from neuralfeels_sem.core.geometry import Intrinsics
+from neuralfeels_sem.core.materials import DEFAULT_MATERIALS
 from neuralfeels_sem.eval.classifier_metrics import ClassifierAccuracy, gt_material_of
 
-CLASSES = ["plastic", "metal", "fabric", "wood"]
+CLASSES = list(DEFAULT_MATERIALS)
 
 
 def test_hand_made_sequence() -> None:

@@ -8,6 +8,7 @@ import numpy as np
 import trimesh
 
 from neuralfeels_sem.core.geometry import Intrinsics, backproject, transform_points
+from neuralfeels_sem.core.materials import DEFAULT_MATERIALS
 from neuralfeels_sem.eval.image_matching import ImageMatcher
 from neuralfeels_sem.eval.matching import MatchingEvaluator
 from neuralfeels_sem.eval.shape import shape_metrics
@@ -26,7 +27,7 @@ def test_power_drill_label_maps(shared_data: Path) -> None:
     centre = mesh.triangles_center
     labels = np.where(centre[:, 2] > 0, 0, 3)  # plastic top, wood bottom
     labels[np.abs(centre[:, 2]) < 0.005] = IGNORE
-    obj = MaterialObject("power_drill", mesh, labels, ("plastic", "metal", "fabric", "wood"))
+    obj = MaterialObject("power_drill", mesh, labels, tuple(DEFAULT_MATERIALS))
     matcher = ImageMatcher(obj, views=3, size=128)
     maps = matcher.maps(lambda x: np.where(x[:, 2] > 0, 0, 3))
     # Rendered depth lies on the scanned surface.

@@ -10,11 +10,12 @@ import pytest
 import trimesh
 
 from neuralfeels_sem.core.errors import ConfigError, DataError, UserError
+from neuralfeels_sem.core.materials import DEFAULT_MATERIALS
 from neuralfeels_sem.objects.custom import load_custom_object
 from neuralfeels_sem.objects.example_files import EXAMPLES_DIR, two_tone_egg, write_two_tone_egg
 from neuralfeels_sem.objects.material_object import IGNORE
 
-CLASSES = ("plastic", "metal", "fabric", "wood")
+CLASSES = tuple(DEFAULT_MATERIALS)
 
 
 def _capsule_mm() -> tuple[trimesh.Trimesh, np.ndarray]:

@@ -8,11 +8,12 @@ import trimesh
 
 from neuralfeels_sem.configs.object import SHIPPED_OBJECTS
 from neuralfeels_sem.core.errors import ConfigError
+from neuralfeels_sem.core.materials import DEFAULT_MATERIALS
 from neuralfeels_sem.objects.library import build_arrays, list_objects, make_object
 from neuralfeels_sem.objects.material_object import IGNORE, MaterialObject
 from neuralfeels_sem.objects.procedural import RECIPES
 
-CLASSES = ("plastic", "metal", "fabric", "wood")
+CLASSES = tuple(DEFAULT_MATERIALS)
 SINGLE = {
     "fabric_toy": "fabric",
     "yarn_ball": "fabric",

@@ -11,10 +11,11 @@ import pytest
 import trimesh
 
 from neuralfeels_sem.core.digit import GEL_HEIGHT_M, GEL_WIDTH_M
+from neuralfeels_sem.core.materials import DEFAULT_MATERIALS
 from neuralfeels_sem.objects.library import make_object
 from neuralfeels_sem.objects.material_object import IGNORE, MaterialObject
 
-CLASSES = ("plastic", "metal", "fabric", "wood")
+CLASSES = tuple(DEFAULT_MATERIALS)
 INTENDED = {
     "patchwork": {"plastic", "metal", "fabric", "wood"},
     "kitchen_tool": {"metal", "wood", "plastic"},

@@ -7,9 +7,10 @@ from pathlib import Path
 import numpy as np
 import pytest
 
+from neuralfeels_sem.core.materials import DEFAULT_MATERIALS
 from neuralfeels_sem.objects.custom import load_custom_object
 
-CLASSES = ("plastic", "metal", "fabric", "wood")
+CLASSES = tuple(DEFAULT_MATERIALS)
 YCB = ("FoamBrick", "MasterChefCan", "MustardBottle", "PowerDrill", "TomatoSoupCan")
 
 

@@ -13,9 +13,10 @@ import cv2
 import numpy as np
 
 from neuralfeels_sem.core.digit import DIGIT_HEIGHT, DIGIT_WIDTH
+from neuralfeels_sem.core.materials import DEFAULT_MATERIALS
 
 SENSORS = ("index", "middle", "ring", "thumb")
-CLASSES = ["plastic", "metal", "fabric", "wood"]
+CLASSES = list(DEFAULT_MATERIALS)
 
 
 def background(sensor_index: int) -> np.ndarray:

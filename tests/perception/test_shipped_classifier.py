@@ -8,7 +8,7 @@ from pathlib import Path
 
 import pytest
 
-from neuralfeels_sem.configs.root import DEFAULT_MATERIALS
+from neuralfeels_sem.core.materials import DEFAULT_MATERIALS
 from neuralfeels_sem.perception.classifier import SHIPPED_CHECKPOINT
 from neuralfeels_sem.perception.classifier.checkpoint import load_checkpoint
 from tests.helpers import compose_config, run_cli

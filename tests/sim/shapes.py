@@ -5,9 +5,10 @@ from __future__ import annotations
 import numpy as np
 import trimesh
 
+from neuralfeels_sem.core.materials import DEFAULT_MATERIALS
 from neuralfeels_sem.objects.material_object import MaterialObject
 
-CLASSES = ("plastic", "metal", "fabric", "wood")
+CLASSES = tuple(DEFAULT_MATERIALS)
 
 
 def two_material_sphere(radius: float = 0.04) -> MaterialObject:

@@ -14,6 +14,7 @@ from neuralfeels_sem.core.geometry import (
     rotation_matrix,
     transform_points,
 )
+from neuralfeels_sem.core.materials import DEFAULT_MATERIALS
 from neuralfeels_sem.objects.material_object import IGNORE, MaterialObject
 from neuralfeels_sem.sim.camera_renderer import (
     CameraRenderer,
@@ -21,7 +22,7 @@ from neuralfeels_sem.sim.camera_renderer import (
     material_colour,
 )
 
-MATERIALS = ("plastic", "metal", "fabric", "wood")
+MATERIALS = tuple(DEFAULT_MATERIALS)
 
 
 def _object() -> MaterialObject:

@@ -7,6 +7,7 @@ import pytest
 
 from neuralfeels_sem.core.geometry import look_at
 from neuralfeels_sem.core.hand import FINGERS
+from neuralfeels_sem.core.materials import DEFAULT_MATERIALS
 from neuralfeels_sem.sim.kinematics import HandKinematics
 from neuralfeels_sem.sim.rig import NOMINAL_Q
 from neuralfeels_sem.sim.scene import SimScene
@@ -82,7 +83,7 @@ def test_library_objects_load_and_step_without_warnings(name: str) -> None:
     from neuralfeels_sem.objects.library import make_object
     from neuralfeels_sem.sim.rig import SimRig
 
-    rig = SimRig(make_object(name, ["plastic", "metal", "fabric", "wood"]))
+    rig = SimRig(make_object(name, list(DEFAULT_MATERIALS)))
     rig.state_at(0.0)
     rig.scene.step(200)
     assert rig.scene.warning_count == 0

@@ -14,6 +14,7 @@ from neuralfeels_sem.core.geometry import (
     rotation_matrix,
     transform_points,
 )
+from neuralfeels_sem.core.materials import DEFAULT_MATERIALS
 from neuralfeels_sem.objects.material_object import IGNORE, MaterialObject
 from neuralfeels_sem.perception.contact import edge_share
 from neuralfeels_sem.sim.backgrounds import (
@@ -28,7 +29,7 @@ from neuralfeels_sem.sim.tactile_renderer import (
     pose_pressing_edge,
 )
 
-MATERIALS = ("plastic", "metal", "fabric", "wood")
+MATERIALS = tuple(DEFAULT_MATERIALS)
 RADIUS = 0.025
 
 

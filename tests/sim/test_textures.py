@@ -10,6 +10,7 @@ from scipy import ndimage
 
 from neuralfeels_sem.core.digit import DIGIT_INTRINSICS, GEL_DISTANCE_M
 from neuralfeels_sem.core.errors import ConfigError
+from neuralfeels_sem.core.materials import DEFAULT_MATERIALS
 from neuralfeels_sem.objects.material_object import MaterialObject
 from neuralfeels_sem.sim.tactile_renderer import DigitRenderer, pose_pressing
 from neuralfeels_sem.sim.textures import (
@@ -22,7 +23,7 @@ from neuralfeels_sem.sim.textures import (
     texture_for,
 )
 
-MATERIALS = ("plastic", "metal", "fabric", "wood")
+MATERIALS = tuple(DEFAULT_MATERIALS)
 
 
 def _points(count: int = 4000, seed: int = 0) -> np.ndarray:

@@ -14,10 +14,11 @@ import numpy as np
 import pytest
 
 from neuralfeels_sem.configs.sensor_sim import SimSensorConfig
+from neuralfeels_sem.core.materials import DEFAULT_MATERIALS
 from neuralfeels_sem.objects.library import make_object
 from neuralfeels_sem.sim.rig import SimRig
 
-CLASSES = ("plastic", "metal", "fabric", "wood")
+CLASSES = tuple(DEFAULT_MATERIALS)
 MATERIALS = {
     "patchwork": {"plastic", "metal", "fabric", "wood"},
     "kitchen_tool": {"metal", "wood", "plastic"},

@@ -11,6 +11,7 @@ import pytest
 import trimesh
 
 from neuralfeels_sem.core.errors import ConfigError, DataError
+from neuralfeels_sem.core.materials import DEFAULT_MATERIALS
 from neuralfeels_sem.objects.material_object import MaterialObject
 from neuralfeels_sem.sim.touch_sources import (
     FeatureEdges,
@@ -21,7 +22,7 @@ from neuralfeels_sem.sim.touch_sources import (
 from neuralfeels_sem.tasks.collect_tactile import run
 from tests.helpers import compose_config, run_cli
 
-CLASSES = ["plastic", "metal", "fabric", "wood"]
+CLASSES = list(DEFAULT_MATERIALS)
 
 
 def _cfg(root: Path, *extra: str):

@@ -4,13 +4,14 @@ from __future__ import annotations
 
 import json
 
+from neuralfeels_sem.core.materials import DEFAULT_MATERIALS
 from neuralfeels_sem.sensors.replay.feelsight import FeelSightReader
 from neuralfeels_sem.sensors.replay.recording import RecordingReader, RecordingWriter
 from neuralfeels_sem.tasks import record
 from tests.helpers import compose_config, run_cli
 from tests.sensors.replay.synthetic_frames import assert_frames_equal, make_frames
 
-CLASSES = ["plastic", "metal", "fabric", "wood"]
+CLASSES = list(DEFAULT_MATERIALS)
 
 
 def test_cli_without_hardware_exits_2_with_one_line_per_device(tmp_path) -> None:

@@ -5,10 +5,10 @@ from __future__ import annotations
 import numpy as np
 import pytest
 
-from neuralfeels_sem.core.materials import BACKGROUND
+from neuralfeels_sem.core.materials import BACKGROUND, DEFAULT_MATERIALS
 from neuralfeels_sem.core.palette import MATERIAL_COLOURS, class_colours, colorize
 
-CLASSES = ["plastic", "metal", "fabric", "wood"]
+CLASSES = list(DEFAULT_MATERIALS)
 
 
 def test_colorize_exact_colours() -> None:

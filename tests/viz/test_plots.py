@@ -8,6 +8,7 @@ import numpy as np
 import pytest
 import trimesh
 
+from neuralfeels_sem.core.materials import DEFAULT_MATERIALS
 from neuralfeels_sem.core.palette import MATERIAL_COLOURS
 from neuralfeels_sem.viz.material_mesh import color_mesh, save_material_mesh
 from neuralfeels_sem.viz.plots import (
@@ -22,7 +23,7 @@ from neuralfeels_sem.viz.plots import (
 )
 from tests.viz.images import assert_png
 
-CLASSES = ["plastic", "metal", "fabric", "wood"]
+CLASSES = list(DEFAULT_MATERIALS)
 
 
 def synthetic_maps(views: int = 2, size: int = 48, wrong_cols: int = 10) -> dict:

@@ -8,12 +8,13 @@ import numpy as np
 import pytest
 
 from neuralfeels_sem.core.errors import ConfigError, DataError
+from neuralfeels_sem.core.materials import DEFAULT_MATERIALS
 from neuralfeels_sem.sensors.replay import replay_sensor as replay_module
 from neuralfeels_sem.sensors.replay.recording import RecordingReader, RecordingWriter
 from neuralfeels_sem.sensors.replay.replay_sensor import ReplaySensor
 from tests.sensors.replay.synthetic_frames import assert_frames_equal, make_frames
 
-CLASSES = ["plastic", "metal", "fabric", "wood"]
+CLASSES = list(DEFAULT_MATERIALS)
 
 
 def write(path, frames, **kwargs) -> None:
