@@ -210,7 +210,9 @@ def test_single_run_oracles_come_from_its_config(tmp_path: Path) -> None:
     (run / ".hydra").mkdir(parents=True)
     (run / ".hydra" / "config.yaml").write_text(yaml.safe_dump(SIM_CONFIG))
     (run / ".hydra" / "overrides.yaml").write_text(yaml.safe_dump(["sensor=sim"]))
-    metrics = run_metrics(70.0, 97.0, 50.0, 96.0, "fabric", machine={"cpus": 2}, load_avg=[1.2, 0.9, 0.7])
+    metrics = run_metrics(
+        70.0, 97.0, 50.0, 96.0, "fabric", machine={"cpus": 2}, load_avg=[1.2, 0.9, 0.7]
+    )
     metrics["config"] = {"object": "plushie", "seed": 0}
     (run / "metrics.json").write_text(json.dumps(metrics))
     page = generate(tmp_path, run)
