@@ -10,7 +10,8 @@ import pytest
 import yaml
 
 from neuralfeels_sem.eval.aggregate import summarize
-from neuralfeels_sem.viz.sweep_plots import finger_material_table, plot_experiment
+from neuralfeels_sem.viz.finger_material_plots import finger_material_table
+from neuralfeels_sem.viz.sweep_plots import plot_experiment
 from tests.viz.images import assert_png
 
 FINGERS = ("index", "middle", "ring", "thumb")
@@ -185,7 +186,7 @@ def test_ablation_without_object_axis_names_the_shared_object(tmp_path: Path) ->
 
 
 def test_heatmap_pools_touches_rather_than_averaging_runs() -> None:
-    from neuralfeels_sem.viz.sweep_plots import pooled_finger_material
+    from neuralfeels_sem.viz.finger_material_plots import pooled_finger_material
 
     def run(correct: int, judged: int, abstentions: int = 0) -> dict:
         cell = {
