@@ -1,0 +1,210 @@
+"""Runs and sources of the results page: what each run directory holds and which oracles it used."""
+
+from __future__ import annotations
+
+import json
+from collections.abc import Sequence
+from dataclasses import dataclass, field
+from pathlib import Path
+from typing import Any
+
+import yaml
+
+from neuralfeels_sem.core.errors import DataError
+from neuralfeels_sem.eval.aggregate import read_job
+
+# Overrides that do not change what a run measures.
+BOOKKEEPING_KEYS = ("seed", "experiment", "launcher")
+BOOKKEEPING_VALUES = {"task": "map", "sensor": "sim"}
+# What each simulator oracle is (names as metrics.json["oracles"]); a real rig has none.
+ORACLES = {
+    "object_pose": "ground-truth object pose (mapping.pose=gt)",
+    "camera_mask": "the simulator's camera object mask (mapping.mapper.use_camera_mask=true)",
+    "tactile_contact_depth": "the simulator's tactile contact depth (mapping.mapper.tactile_depth.source=gt)",
+    "noise_free_depth": "noise-free camera depth (sensor.rgbd.depth_noise_std=0)",
+    "material_labels": "ground-truth material labels (classifier=oracle)",
+}
+SINGLE_MATERIAL_FLOOR = 100.0 - 1e-6  # majority map's mean-class % on a one-material object
+
+
+@dataclass
+class Run:
+    path: Path
+    overrides: dict[str, str]
+    metrics: dict
+    config: dict | None  # .hydra/config.yaml, unresolved
+
+    @property
+    def object(self) -> str:
+        name = self.overrides.get("object") or get(self.metrics, "config.object")
+        if name is None and self.config:
+            name = get(self.config, "object.name")
+        return str(name) if name is not None else "unknown"
+
+    @property
+    def seed(self) -> int | None:
+        seed = self.overrides.get("seed", get(self.metrics, "config.seed"))
+        if seed is None and self.config:
+            seed = self.config.get("seed")
+        try:
+            return int(seed)
+        except (TypeError, ValueError):
+            return None
+
+    @property
+    def setting(self) -> dict[str, str]:
+        """Overrides that change what the run measures (not the object or the seed)."""
+        return {
+            k: v
+            for k, v in self.overrides.items()
+            if k != "object"
+            and k not in BOOKKEEPING_KEYS
+            and not k.startswith("hydra")
+            and BOOKKEEPING_VALUES.get(k) != v
+        }
+
+    @property
+    def single_material(self) -> bool:
+        floor = get(self.metrics, "baseline_majority.matching_mean_class_pct")
+        if floor is not None:
+            return floor >= SINGLE_MATERIAL_FLOOR
+        per_class = self.metrics.get("matching_per_class")
+        return isinstance(per_class, dict) and len(per_class) == 1
+
+
+@dataclass
+class Source:
+    path: Path
+    kind: str  # "run" or "sweep"
+    runs: list[Run]
+    failed: list[str] = field(default_factory=list)
+    missing: list[str] = field(default_factory=list)
+
+    @property
+    def label(self) -> str:
+        return display_path(self.path)
+
+
+# ---------------------------------------------------------------------------- reading
+def get(data: Any, dotted: str) -> Any:
+    """data['a']['b'] for 'a.b'; None where any level is missing."""
+    for key in dotted.split("."):
+        if not isinstance(data, dict) or key not in data:
+            return None
+        data = data[key]
+    return data
+
+
+def display_path(path: Path) -> str:
+    try:
+        return str(path.resolve().relative_to(Path.cwd().resolve()))
+    except ValueError:
+        return str(path)
+
+
+def _load_json(path: Path) -> dict:
+    try:
+        data = json.loads(path.read_text())
+    except (OSError, ValueError) as exc:
+        raise DataError(f"{path} is unreadable: {exc}") from None
+    if not isinstance(data, dict):
+        raise DataError(f"{path} does not hold a JSON object")
+    return data
+
+
+def _load_yaml(path: Path) -> Any:
+    if not path.is_file():
+        return None
+    try:
+        return yaml.safe_load(path.read_text())
+    except (OSError, yaml.YAMLError):
+        return None
+
+
+def _overrides(run_dir: Path) -> dict[str, str]:
+    raw = _load_yaml(run_dir / ".hydra" / "overrides.yaml") or []
+    items = [str(o) for o in raw if "=" in str(o)] if isinstance(raw, list) else []
+    return dict(o.lstrip("+~").split("=", 1) for o in items)
+
+
+def _run(run_dir: Path, metrics: dict | None = None) -> Run:
+    config = _load_yaml(run_dir / ".hydra" / "config.yaml")
+    return Run(
+        path=run_dir,
+        overrides=_overrides(run_dir),
+        metrics=_load_json(run_dir / "metrics.json") if metrics is None else metrics,
+        config=config if isinstance(config, dict) else None,
+    )
+
+
+def _job_order(path: Path) -> tuple:
+    return (0, int(path.name), "") if path.name.isdigit() else (1, 0, path.name)
+
+
+def load_source(path: Path) -> Source:
+    """A run or sweep directory; a DataError naming the path for anything else."""
+    if not path.is_dir():
+        raise DataError(f"{path}: no such directory")
+    if (path / "metrics.json").is_file():
+        return Source(path, "run", [_run(path)])
+    source = Source(path, "sweep", [])
+    for job_dir in sorted((d for d in path.iterdir() if d.is_dir()), key=_job_order):
+        job = read_job(job_dir)
+        if job is None:
+            continue
+        if job["status"] == "failed":
+            source.failed.append(job_dir.name)
+        elif (job_dir / "metrics.json").is_file():
+            try:
+                source.runs.append(_run(job_dir))
+            except DataError:
+                source.failed.append(job_dir.name)
+        else:
+            source.missing.append(job_dir.name)
+    if not source.runs and not source.failed:
+        raise DataError(
+            f"{path}: neither a run directory (no metrics.json) nor a sweep directory "
+            "(no job sub-directory with metrics.json and .hydra/overrides.yaml)"
+        )
+    return source
+
+
+# ---------------------------------------------------------------------------- oracles
+def oracles_from_config(config: dict) -> list[str]:
+    """The oracles a run used, from its composed config (as tasks/build.py oracles_used records them)."""
+    sensor = config.get("sensor") or {}
+    if sensor.get("name") != "sim":
+        return []
+    mapping = config.get("mapping") or {}
+    mapper = mapping.get("mapper") or {}
+    depth_noise = (sensor.get("rgbd") or {}).get("depth_noise_std", 0.0)
+    try:
+        noise_free = float(depth_noise) == 0.0
+    except (TypeError, ValueError):
+        noise_free = False
+    used = {
+        "object_pose": mapping.get("pose") == "gt",
+        "camera_mask": mapper.get("use_camera_mask") is True,
+        "tactile_contact_depth": (mapper.get("tactile_depth") or {}).get("source") == "gt",
+        "noise_free_depth": noise_free,
+        "material_labels": str((config.get("classifier") or {}).get("_target_", "")).endswith(
+            "OracleClassifier"
+        ),
+    }
+    return [name for name, on in used.items() if on]
+
+
+def oracles_of(run: Run) -> tuple[tuple[str, ...] | None, str]:
+    """(oracle names, where they were read) or (None, reason) when nothing tells."""
+    recorded = run.metrics.get("oracles")
+    if isinstance(recorded, list):
+        return tuple(str(o) for o in recorded), "metrics.json"
+    if run.config is not None:
+        return tuple(oracles_from_config(run.config)), ".hydra/config.yaml"
+    return None, "not recorded"
+
+
+def describe_oracles(names: Sequence[str]) -> str:
+    if not names:
+        return "none (every input perceived as on a real rig)"
+    return "; ".join(ORACLES.get(n, n) for n in names)

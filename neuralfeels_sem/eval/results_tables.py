@@ -1,0 +1,221 @@
+"""Statistics and markdown tables of the results page (multi-material, single-material, settings)."""
+
+from __future__ import annotations
+
+import math
+from collections.abc import Iterable, Sequence
+from typing import Any
+
+from neuralfeels_sem.eval.results_runs import Run, Source, get
+
+
+# ---------------------------------------------------------------------------- statistics
+def values_of(runs: Iterable[Run], key: str, scale: float = 1.0) -> list[float]:
+    out = []
+    for run in runs:
+        value = get(run.metrics, key)
+        number = isinstance(value, int | float) and not isinstance(value, bool)
+        if number and math.isfinite(float(value)):
+            out.append(scale * float(value))
+    return out
+
+
+def mean(values: Sequence[float]) -> float | None:
+    return sum(values) / len(values) if values else None
+
+
+def std(values: Sequence[float]) -> float | None:
+    """Sample standard deviation (n - 1); 0 for one value."""
+    if not values:
+        return None
+    if len(values) == 1:
+        return 0.0
+    m = sum(values) / len(values)
+    return math.sqrt(sum((v - m) ** 2 for v in values) / (len(values) - 1))
+
+
+def fmt(value: float | None, digits: int = 1, sign: bool = False) -> str:
+    if value is None:
+        return "n/a"
+    return f"{value:+.{digits}f}" if sign else f"{value:.{digits}f}"
+
+
+def mean_std(values: Sequence[float], digits: int = 1) -> str:
+    if not values:
+        return "n/a"
+    return f"{fmt(mean(values), digits)} ± {fmt(std(values), digits)}"
+
+
+def margins(runs: Sequence[Run]) -> list[float]:
+    """Mean-class matching minus the majority map's, per run."""
+    out = []
+    for run in runs:
+        margin = get(run.metrics, "margin_over_majority.matching_mean_class_pct")
+        if margin is None:
+            value = get(run.metrics, "matching_mean_class_pct")
+            floor = get(run.metrics, "baseline_majority.matching_mean_class_pct")
+            margin = value - floor if value is not None and floor is not None else None
+        if margin is not None:
+            out.append(float(margin))
+    return out
+
+
+def seeds_text(runs: Sequence[Run]) -> str:
+    seeds = sorted({s for r in runs if (s := r.seed) is not None})
+    if not seeds:
+        return "n/a"
+    runs_of_seeds: list[list[int]] = [[seeds[0]]]
+    for seed in seeds[1:]:
+        if seed == runs_of_seeds[-1][-1] + 1:
+            runs_of_seeds[-1].append(seed)
+        else:
+            runs_of_seeds.append([seed])
+    return ", ".join(str(r[0]) if len(r) == 1 else f"{r[0]}-{r[-1]}" for r in runs_of_seeds)
+
+
+def by_seed(runs: Sequence[Run]) -> list[Run]:
+    return sorted(runs, key=lambda r: (r.seed is None, r.seed or 0, str(r.path)))
+
+
+def majority_cells(runs: Sequence[Run]) -> tuple[str, str]:
+    """(majority map's mean-class %, its matching %), the first with the material's name."""
+    materials = sorted(
+        {str(m) for r in runs if (m := get(r.metrics, "baseline_majority.material"))}
+    )
+    floor = fmt(mean(values_of(runs, "baseline_majority.matching_mean_class_pct")))
+    if materials and floor != "n/a":
+        floor += f" ({', '.join(materials)})"
+    return floor, fmt(mean(values_of(runs, "baseline_majority.matching_pct")))
+
+
+def matching_cell(runs: Sequence[Run]) -> str:
+    """Plain matching, never alone: its mean with the majority map's in brackets."""
+    _, floor = majority_cells(runs)
+    return f"{fmt(mean(values_of(runs, 'matching_pct')))} ({floor})"
+
+
+# ---------------------------------------------------------------------------- tables
+def table(header: Sequence[str], rows: Sequence[Sequence[str]]) -> list[str]:
+    lines = ["| " + " | ".join(header) + " |", "|" + "---|" * len(header)]
+    lines += ["| " + " | ".join(row) + " |" for row in rows]
+    return lines
+
+
+def group_by(runs: Iterable[Run], key) -> dict[Any, list[Run]]:
+    groups: dict[Any, list[Run]] = {}
+    for run in runs:
+        groups.setdefault(key(run), []).append(run)
+    return groups
+
+
+def multi_material_table(runs: Sequence[Run]) -> list[str]:
+    rows = []
+    for obj, members in group_by(runs, lambda r: r.object).items():
+        members = by_seed(members)
+        per_seed = ", ".join(
+            fmt(get(r.metrics, "matching_mean_class_pct"))
+            for r in members
+            if get(r.metrics, "matching_mean_class_pct") is not None
+        )
+        floor, _ = majority_cells(members)
+        rows.append(
+            [
+                f"`{obj}`",
+                seeds_text(members),
+                per_seed or "n/a",
+                "**" + mean_std(values_of(members, "matching_mean_class_pct")) + "**",
+                floor,
+                fmt(mean(margins(members)), sign=True),
+                matching_cell(members),
+                fmt(mean(values_of(members, "matching_mesh_pct"))),
+                fmt(mean(values_of(members, "fscore_5mm")), 3),
+                fmt(mean(values_of(members, "classifier_accuracy.overall", 100.0))),
+                fmt(mean(values_of(members, "classifier_accuracy.coverage", 100.0))),
+            ]
+        )
+    return table(
+        [
+            "object",
+            "seeds",
+            "mean-class % per seed",
+            "mean-class % (mean ± std)",
+            "majority map % (material)",
+            "margin",
+            "matching % (majority)",
+            "on mesh %",
+            "F-score @5 mm",
+            "classifier acc. %",
+            "coverage %",
+        ],
+        rows,
+    )
+
+
+def single_material_table(runs: Sequence[Run]) -> list[str]:
+    rows = []
+    for obj, members in group_by(runs, lambda r: r.object).items():
+        rows.append(
+            [
+                f"`{obj}`",
+                str(len(members)),
+                seeds_text(members),
+                mean_std(values_of(members, "classifier_accuracy.overall", 100.0)),
+                mean_std(values_of(members, "classifier_accuracy.coverage", 100.0)),
+                mean_std(values_of(members, "classifier_accuracy.accuracy_all_touches", 100.0)),
+                mean_std(values_of(members, "fscore_5mm"), 3),
+            ]
+        )
+    return table(
+        [
+            "object",
+            "runs",
+            "seeds",
+            "classifier acc. on judged touches %",
+            "coverage %",
+            "acc. over all touches %",
+            "F-score @5 mm",
+        ],
+        rows,
+    )
+
+
+def setting_label(run: Run, keys: Sequence[str]) -> str:
+    parts = [f"object={run.object}"] + [f"{k}={run.setting[k]}" for k in keys if k in run.setting]
+    return ", ".join(parts)
+
+
+def settings_table(source: Source, runs: Sequence[Run]) -> list[str]:
+    """One row per setting (object and the overrides that vary in this source)."""
+    keys = sorted({k for r in runs for k in r.setting})
+    varying = [k for k in keys if len({r.setting.get(k) for r in runs}) > 1]
+    constant = [k for k in keys if k not in varying]
+    with_pose = any(get(r.metrics, "pose_error_mm") is not None for r in runs)
+    rows = []
+    for label, members in group_by(runs, lambda r: setting_label(r, varying)).items():
+        floor, _ = majority_cells(members)
+        row = [
+            label,
+            str(len(members)),
+            "**" + mean_std(values_of(members, "matching_mean_class_pct")) + "**",
+            floor,
+            fmt(mean(margins(members)), sign=True),
+            matching_cell(members),
+            fmt(mean(values_of(members, "fscore_5mm")), 3),
+        ]
+        if with_pose:
+            row.append(fmt(mean(values_of(members, "pose_error_mm")), 2))
+        rows.append(row)
+    header = [
+        "setting",
+        "runs",
+        "mean-class % (mean ± std)",
+        "majority map % (material)",
+        "margin",
+        "matching % (majority)",
+        "F-score @5 mm",
+    ] + (["pose error mm"] if with_pose else [])
+    lines = [f"### `{source.label}`", ""]
+    if constant:
+        fixed = ", ".join(f"`{k}={runs[0].setting[k]}`" for k in constant)
+        lines += [f"Every run here: {fixed}.", ""]
+    return lines + table(header, rows)
