@@ -132,6 +132,71 @@ def plot_runs_matching(
     return _save(fig, path, dpi)
 
 
+def _group_setting(g: dict, axis_keys: list[str]) -> str:
+    """A group's label over the non-object axes, e.g. ``lr=0.1, seed=2`` (``all`` without axes)."""
+    return ", ".join(f"{k.split('.')[-1]}={g['group'].get(k)}" for k in axis_keys) or "all"
+
+
+def _group_clusters(summary: dict, groups: list[dict]) -> tuple[str, list[str]]:
+    """The object shown when a group has no object axis, and the sorted object clusters."""
+    # Without an object axis, name the one object the jobs share (else "all").
+    objects = {str(j.get("overrides", {}).get("object")) for j in summary.get("jobs") or []}
+    fixed = objects.pop() if len(objects) == 1 and "None" not in objects else "all"
+    clusters = sorted({str(g["group"].get("object", fixed)) for g in groups})
+    return fixed, clusters
+
+
+def _draw_group_metric(
+    ax,
+    groups: list[dict],
+    metric: tuple,
+    clusters: list[str],
+    settings: list[str],
+    setting,
+    fixed: str,
+) -> None:
+    """One metric's panel: a bar per setting in each object cluster, plus the majority-map floor."""
+    key, label, scale = metric
+    width = 0.8 / len(settings)
+    x = np.arange(len(clusters))
+    for s, name in enumerate(settings):
+        means, stds = np.full(len(clusters), np.nan), np.zeros(len(clusters))
+        for g in groups:
+            if setting(g) == name and key in g.get("metrics", {}):
+                c = clusters.index(str(g["group"].get("object", fixed)))
+                means[c] = scale * g["metrics"][key]["mean"]
+                stds[c] = scale * g["metrics"][key]["std"]
+        offset = x + (s - (len(settings) - 1) / 2) * width
+        ax.bar(
+            offset,
+            np.nan_to_num(means),
+            width,
+            yerr=stds,
+            capsize=3,
+            label=name,
+            edgecolor="black",
+            linewidth=0.5,
+        )
+        floors = np.full(len(clusters), np.nan)
+        for g in groups:
+            floor = g.get("metrics", {}).get(f"baseline_majority.{key}")
+            if setting(g) == name and floor is not None:
+                floors[clusters.index(str(g["group"].get("object", fixed)))] = scale * floor["mean"]
+        if not np.isnan(floors).all():
+            ax.scatter(
+                offset,
+                floors,
+                marker="_",
+                s=300,
+                color="black",
+                zorder=3,
+                label="majority-material map" if s == 0 else None,
+            )
+    ax.set_xticks(x, clusters)
+    ax.set_ylabel(label)
+    ax.grid(axis="y", alpha=0.3)
+
+
 def plot_groups(summary: dict, path: Path, dpi: int = 120) -> Path | None:
     """Grouped bars (mean ± std) of the headline metrics: clusters = objects, bars = the other axes."""
     groups = summary.get("groups") or []
@@ -144,12 +209,9 @@ def plot_groups(summary: dict, path: Path, dpi: int = 120) -> Path | None:
     axis_keys = [k for k in keys if k != "object"]
 
     def setting(g: dict) -> str:
-        return ", ".join(f"{k.split('.')[-1]}={g['group'].get(k)}" for k in axis_keys) or "all"
+        return _group_setting(g, axis_keys)
 
-    # Without an object axis, name the one object the jobs share (else "all").
-    objects = {str(j.get("overrides", {}).get("object")) for j in summary.get("jobs") or []}
-    fixed = objects.pop() if len(objects) == 1 and "None" not in objects else "all"
-    clusters = sorted({str(g["group"].get("object", fixed)) for g in groups})
+    fixed, clusters = _group_clusters(summary, groups)
     settings = sorted({setting(g) for g in groups})
     fig = Figure(
         figsize=(
@@ -159,47 +221,8 @@ def plot_groups(summary: dict, path: Path, dpi: int = 120) -> Path | None:
         layout="constrained",
     )
     axes = fig.subplots(len(metrics), 1, squeeze=False)[:, 0]
-    width = 0.8 / len(settings)
-    x = np.arange(len(clusters))
-    for ax, (key, label, scale) in zip(axes, metrics):
-        for s, name in enumerate(settings):
-            means, stds = np.full(len(clusters), np.nan), np.zeros(len(clusters))
-            for g in groups:
-                if setting(g) == name and key in g.get("metrics", {}):
-                    c = clusters.index(str(g["group"].get("object", fixed)))
-                    means[c] = scale * g["metrics"][key]["mean"]
-                    stds[c] = scale * g["metrics"][key]["std"]
-            offset = x + (s - (len(settings) - 1) / 2) * width
-            ax.bar(
-                offset,
-                np.nan_to_num(means),
-                width,
-                yerr=stds,
-                capsize=3,
-                label=name,
-                edgecolor="black",
-                linewidth=0.5,
-            )
-            floors = np.full(len(clusters), np.nan)
-            for g in groups:
-                floor = g.get("metrics", {}).get(f"baseline_majority.{key}")
-                if setting(g) == name and floor is not None:
-                    floors[clusters.index(str(g["group"].get("object", fixed)))] = (
-                        scale * floor["mean"]
-                    )
-            if not np.isnan(floors).all():
-                ax.scatter(
-                    offset,
-                    floors,
-                    marker="_",
-                    s=300,
-                    color="black",
-                    zorder=3,
-                    label="majority-material map" if s == 0 else None,
-                )
-        ax.set_xticks(x, clusters)
-        ax.set_ylabel(label)
-        ax.grid(axis="y", alpha=0.3)
+    for ax, metric in zip(axes, metrics):
+        _draw_group_metric(ax, groups, metric, clusters, settings, setting, fixed)
     axes[0].set_title("Comparison per setting (mean ± std over trials)")
     fig.legend(*axes[0].get_legend_handles_labels(), loc="outside lower center", fontsize=8)
     return _save(fig, path, dpi)
