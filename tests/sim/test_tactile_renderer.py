@@ -22,9 +22,9 @@ from neuralfeels_sem.sim.backgrounds import (
     procedural_background,
     resolve_background,
 )
+from neuralfeels_sem.sim.contact_sheet import contact_sheet
 from neuralfeels_sem.sim.tactile_renderer import (
     DigitRenderer,
-    contact_sheet,
     pose_pressing,
     pose_pressing_edge,
 )
