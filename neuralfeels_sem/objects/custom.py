@@ -85,6 +85,66 @@ def clean_mesh(
     return mesh, labels
 
 
+def _check_options(labels: str | None, material: str | None, rescale_to: float | None) -> None:
+    """Reject a config that sets both object.labels and object.material, or a non-positive rescale."""
+    if labels is not None and material is not None:
+        raise ConfigError(
+            f"object.labels={labels} and object.material={material} are both set: pick one"
+        )
+    if rescale_to is not None and rescale_to <= 0:
+        raise ConfigError(f"object.rescale_to={rescale_to} must be > 0 metres, or null")
+
+
+def _label_source(
+    mesh_path: Path, labels: str | None, material: str | None, class_names: tuple[str, ...]
+) -> tuple[int | None, Path | None]:
+    """The whole-mesh class index (object.material), else the label file (given or beside the mesh)."""
+    index = None
+    if material is not None:
+        index = class_index(material, class_names, what=f"object.material={material}")
+    label_path = resolve_path(labels, "object.labels") if labels is not None else None
+    if material is None and label_path is None:
+        label_path = sidecar_labels(mesh_path)
+        if label_path is None:
+            raise ConfigError(
+                f"object.mesh={mesh_path} has no labels: set object.labels=PATH (npy/json) or object.material=NAME"
+            )
+    return index, label_path
+
+
+def _face_labels(
+    raw: trimesh.Trimesh,
+    mesh_path: Path,
+    index: int | None,
+    label_path: Path | None,
+    class_names: tuple[str, ...],
+) -> np.ndarray:
+    """One class index per face of `raw`: all `index`, or read from `label_path` (one per face)."""
+    if index is not None:
+        return np.full(len(raw.faces), index, dtype=np.int64)
+    face_labels = read_labels(label_path, class_names)
+    if len(face_labels) != len(raw.faces):
+        raise DataError(
+            f"label file {label_path} has {len(face_labels)} labels but object.mesh={mesh_path} has "
+            f"{len(raw.faces)} faces: export one label per face"
+        )
+    return face_labels
+
+
+def _centre_and_scale(clean: trimesh.Trimesh, mesh_path: Path, rescale_to: float | None) -> None:
+    """Centre the mesh on its bounding box; rescale it, or warn when it is not hand-sized."""
+    clean.apply_translation(-clean.bounds.mean(axis=0))
+    if rescale_to is not None:
+        clean.apply_scale(rescale_to / float(clean.extents.max()))
+    elif not HAND_SIZE_M[0] <= clean.extents.max() <= HAND_SIZE_M[1]:
+        log.warning(
+            "object.mesh=%s is %.3f m across, outside the hand's %.2f-%.2f m: set object.rescale_to",
+            mesh_path,
+            clean.extents.max(),
+            *HAND_SIZE_M,
+        )
+
+
 def load_custom_object(
     mesh: str,
     class_names: Sequence[str],
@@ -103,43 +163,13 @@ def load_custom_object(
     object config instantiates.
     """
     class_names = tuple(class_names)
-    if labels is not None and material is not None:
-        raise ConfigError(
-            f"object.labels={labels} and object.material={material} are both set: pick one"
-        )
-    if rescale_to is not None and rescale_to <= 0:
-        raise ConfigError(f"object.rescale_to={rescale_to} must be > 0 metres, or null")
+    _check_options(labels, material, rescale_to)
     mesh_path = resolve_path(mesh, "object.mesh")
-    if material is not None:
-        index = class_index(material, class_names, what=f"object.material={material}")
-    label_path = resolve_path(labels, "object.labels") if labels is not None else None
-    if material is None and label_path is None:
-        label_path = sidecar_labels(mesh_path)
-        if label_path is None:
-            raise ConfigError(
-                f"object.mesh={mesh_path} has no labels: set object.labels=PATH (npy/json) or object.material=NAME"
-            )
+    index, label_path = _label_source(mesh_path, labels, material, class_names)
     raw = read_mesh(mesh_path)
-    if material is not None:
-        face_labels = np.full(len(raw.faces), index, dtype=np.int64)
-    else:
-        face_labels = read_labels(label_path, class_names)
-        if len(face_labels) != len(raw.faces):
-            raise DataError(
-                f"label file {label_path} has {len(face_labels)} labels but object.mesh={mesh_path} has "
-                f"{len(raw.faces)} faces: export one label per face"
-            )
+    face_labels = _face_labels(raw, mesh_path, index, label_path, class_names)
     clean, face_labels = clean_mesh(raw, face_labels, mesh_path)
-    clean.apply_translation(-clean.bounds.mean(axis=0))
-    if rescale_to is not None:
-        clean.apply_scale(rescale_to / float(clean.extents.max()))
-    elif not HAND_SIZE_M[0] <= clean.extents.max() <= HAND_SIZE_M[1]:
-        log.warning(
-            "object.mesh=%s is %.3f m across, outside the hand's %.2f-%.2f m: set object.rescale_to",
-            mesh_path,
-            clean.extents.max(),
-            *HAND_SIZE_M,
-        )
+    _centre_and_scale(clean, mesh_path, rescale_to)
     mass, friction = mass_and_friction(
         float(clean.volume), np.asarray(clean.area_faces), face_labels, class_names
     )
