@@ -148,6 +148,50 @@ class RealSensor(Sensor):
             )
             return None
 
+    def _read_tactile(
+        self, poses: dict, stamps: dict[str, float], start: float
+    ) -> dict[str, TactileReading]:
+        """One reading per DIGIT that answered, posed by `poses` (identity if unknown); stamps each."""
+        tactile = {}
+        for cam in self.digits:
+            image = self._read(cam, cam.read)
+            if image is None:
+                continue
+            stamps[f"digit/{cam.finger}"] = time.monotonic() - start
+            tactile[cam.finger] = TactileReading(
+                finger=cam.finger,
+                image=image,
+                world_T_sensor=np.asarray(poses.get(cam.finger, np.eye(4)), dtype=np.float64),
+                intrinsics=DIGIT_INTRINSICS,
+                background=cam.background,
+            )
+        return tactile
+
+    def _read_camera(
+        self, stamps: dict[str, float], start: float, world_T_object: np.ndarray
+    ) -> tuple[CameraReading | None, np.ndarray]:
+        """The camera's reading (None if absent or silent) and the object pose, updated from its markers."""
+        if self.camera is None:
+            return None, world_T_object
+        rgbd = self._read(self.camera, self.camera.read)
+        if rgbd is None:
+            return None, world_T_object
+        stamps["camera"] = time.monotonic() - start
+        camera_reading = CameraReading(
+            rgb=rgbd[0],
+            depth=rgbd[1],
+            intrinsics=self.camera.intrinsics,
+            world_T_camera=self.camera.world_T_camera,
+            name=self.camera.name,
+        )
+        if self.object_pose is not None:
+            estimate = self.object_pose.estimate(
+                rgbd[0], self.camera.intrinsics, self.camera.world_T_camera
+            )
+            if estimate is not None:
+                world_T_object = estimate
+        return camera_reading, world_T_object
+
     def frames(self) -> Iterator[Frame]:
         start = time.monotonic()
         last_q: np.ndarray | None = None
@@ -173,37 +217,8 @@ class RealSensor(Sensor):
                 if last_q is not None and self._kinematics
                 else {}
             )
-            tactile = {}
-            for cam in self.digits:
-                image = self._read(cam, cam.read)
-                if image is None:
-                    continue
-                stamps[f"digit/{cam.finger}"] = time.monotonic() - start
-                tactile[cam.finger] = TactileReading(
-                    finger=cam.finger,
-                    image=image,
-                    world_T_sensor=np.asarray(poses.get(cam.finger, np.eye(4)), dtype=np.float64),
-                    intrinsics=DIGIT_INTRINSICS,
-                    background=cam.background,
-                )
-            camera_reading = None
-            if self.camera is not None:
-                rgbd = self._read(self.camera, self.camera.read)
-                if rgbd is not None:
-                    stamps["camera"] = time.monotonic() - start
-                    camera_reading = CameraReading(
-                        rgb=rgbd[0],
-                        depth=rgbd[1],
-                        intrinsics=self.camera.intrinsics,
-                        world_T_camera=self.camera.world_T_camera,
-                        name=self.camera.name,
-                    )
-                    if self.object_pose is not None:
-                        estimate = self.object_pose.estimate(
-                            rgbd[0], self.camera.intrinsics, self.camera.world_T_camera
-                        )
-                        if estimate is not None:
-                            world_T_object = estimate
+            tactile = self._read_tactile(poses, stamps, start)
+            camera_reading, world_T_object = self._read_camera(stamps, start, world_T_object)
             self.stream_times = stamps
             yield Frame(
                 index=index,
