@@ -135,6 +135,53 @@ class RecordingWriter:
     def _write_meta(self) -> None:
         (self.path / "meta.json").write_text(json.dumps(self.meta, indent=1))
 
+    def _write_tactile(self, finger: str, reading: TactileReading, name: str) -> dict:
+        """Save one DIGIT image (its background once, its ground truth if any); return its record."""
+        folder = self.path / "tactile" / finger
+        self._save(_write_png, folder / f"{name}.png", reading.image)
+        if finger not in self.meta["fingers"]:
+            self.meta["fingers"].append(finger)
+            self.meta["digit_intrinsics"][finger] = reading.intrinsics.to_dict()
+        if reading.background is not None and finger not in self._backgrounds:
+            self._save(_write_png, folder / "background.png", reading.background)
+            self._backgrounds.add(finger)
+        gt = {
+            key: value
+            for key, value in (
+                ("contact_mask", reading.gt_contact_mask),
+                ("depth", reading.gt_depth),
+                ("material", reading.gt_material),
+            )
+            if value is not None
+        }
+        if "material" in gt:
+            self.meta["has_gt_material"] = True
+        if gt:
+            gt_path = self.path / "gt" / "tactile" / finger / f"{name}.npz"
+            gt_path.parent.mkdir(parents=True, exist_ok=True)
+            self._save(_savez, gt_path, gt)
+        return {
+            "world_T_sensor": _pose(reading.world_T_sensor),
+            "gt": sorted(gt),
+        }
+
+    def _write_camera(self, cam: CameraReading, name: str) -> dict:
+        """Save the camera's RGB, depth and mask (if any); return its record."""
+        self._save(_write_png, self.path / "camera" / "rgb" / f"{name}.png", cam.rgb)
+        depth_path = self.path / "camera" / "depth" / f"{name}.npy"
+        depth_path.parent.mkdir(parents=True, exist_ok=True)
+        self._save(np.save, depth_path, cam.depth.astype(np.float32))
+        if cam.mask is not None:
+            mask_path = self.path / "camera" / "mask" / f"{name}.png"
+            self._save(_write_png, mask_path, cam.mask.astype(np.uint8) * 255)
+        if self.meta["camera"] is None:
+            self.meta["camera"] = {"name": cam.name, "intrinsics": cam.intrinsics.to_dict()}
+        return {
+            "world_T_camera": _pose(cam.world_T_camera),
+            "name": cam.name,
+            "mask": cam.mask is not None,
+        }
+
     def write(self, frame: Frame, stamps: dict[str, float] | None = None) -> None:
         if self._lines is None:
             raise RuntimeError("RecordingWriter.open() first")
@@ -152,49 +199,9 @@ class RecordingWriter:
             "camera": None,
         }
         for finger, reading in frame.tactile.items():
-            folder = self.path / "tactile" / finger
-            self._save(_write_png, folder / f"{name}.png", reading.image)
-            if finger not in self.meta["fingers"]:
-                self.meta["fingers"].append(finger)
-                self.meta["digit_intrinsics"][finger] = reading.intrinsics.to_dict()
-            if reading.background is not None and finger not in self._backgrounds:
-                self._save(_write_png, folder / "background.png", reading.background)
-                self._backgrounds.add(finger)
-            gt = {
-                key: value
-                for key, value in (
-                    ("contact_mask", reading.gt_contact_mask),
-                    ("depth", reading.gt_depth),
-                    ("material", reading.gt_material),
-                )
-                if value is not None
-            }
-            if "material" in gt:
-                self.meta["has_gt_material"] = True
-            if gt:
-                gt_path = self.path / "gt" / "tactile" / finger / f"{name}.npz"
-                gt_path.parent.mkdir(parents=True, exist_ok=True)
-                self._save(_savez, gt_path, gt)
-            record["tactile"][finger] = {
-                "world_T_sensor": _pose(reading.world_T_sensor),
-                "gt": sorted(gt),
-            }
+            record["tactile"][finger] = self._write_tactile(finger, reading, name)
         if frame.camera is not None:
-            cam = frame.camera
-            self._save(_write_png, self.path / "camera" / "rgb" / f"{name}.png", cam.rgb)
-            depth_path = self.path / "camera" / "depth" / f"{name}.npy"
-            depth_path.parent.mkdir(parents=True, exist_ok=True)
-            self._save(np.save, depth_path, cam.depth.astype(np.float32))
-            if cam.mask is not None:
-                mask_path = self.path / "camera" / "mask" / f"{name}.png"
-                self._save(_write_png, mask_path, cam.mask.astype(np.uint8) * 255)
-            if self.meta["camera"] is None:
-                self.meta["camera"] = {"name": cam.name, "intrinsics": cam.intrinsics.to_dict()}
-            record["camera"] = {
-                "world_T_camera": _pose(cam.world_T_camera),
-                "name": cam.name,
-                "mask": cam.mask is not None,
-            }
+            record["camera"] = self._write_camera(frame.camera, name)
         self._lines.write(json.dumps(record) + "\n")
         self._lines.flush()
         self.meta["num_frames"] += 1
