@@ -22,6 +22,7 @@ from __future__ import annotations
 
 import pickle
 from collections.abc import Iterable
+from dataclasses import dataclass, field
 from pathlib import Path
 
 import cv2
@@ -66,83 +67,114 @@ def _write_jpg(path: Path, image: np.ndarray) -> None:
     cv2.imwrite(str(path), image, [cv2.IMWRITE_JPEG_QUALITY, JPEG_QUALITY])
 
 
+@dataclass
+class _Tracks:
+    """Per-frame values export_feelsight gathers for data.pkl and depth.npz."""
+
+    times: list = field(default_factory=list)
+    joints: list = field(default_factory=list)
+    object_poses: list = field(default_factory=list)
+    gt_object_poses: list = field(default_factory=list)
+    digit_poses: dict[str, list] = field(default_factory=lambda: {f: [] for f in FINGERS})
+    depths: list = field(default_factory=list)
+    camera_poses: list = field(default_factory=list)
+    camera_name: str | None = None
+    camera_intrinsics: Intrinsics | None = None
+
+    def add_state(self, frame: Frame) -> None:
+        """The frame's time, joint angles (NaN when absent) and object poses."""
+        self.times.append(frame.time_s)
+        self.joints.append(
+            np.full(16, np.nan)
+            if frame.joint_positions is None
+            else np.asarray(frame.joint_positions, np.float64)
+        )
+        self.object_poses.append(frame.world_T_object)
+        self.gt_object_poses.append(
+            frame.world_T_object if frame.gt_world_T_object is None else frame.gt_world_T_object
+        )
+
+    def data(self) -> dict:
+        """data.pkl's contents, with our DIGIT poses and ground-truth object poses added."""
+        fingers = [f for f in FINGERS if any(p is not None for p in self.digit_poses[f])]
+        return {
+            "time": np.asarray(self.times),
+            "digit_info": {
+                "intrinsics": _intrinsics_to_feelsight(DIGIT_INTRINSICS),
+                "cam_dist": GEL_DISTANCE_M,
+                "depth_scale": 1.0,
+            },
+            "allegro": {"base_pose": np.eye(4), "joint_state": np.stack(self.joints)},
+            "object": {"pose": list(np.stack(self.object_poses))},
+            "realsense": {
+                self.camera_name: {
+                    "intrinsics": _intrinsics_to_feelsight(self.camera_intrinsics),
+                    "pose": np.stack(self.camera_poses),
+                }
+            },
+            "semanticfeels": {
+                "digit_poses": {
+                    f: np.stack([p if p is not None else np.eye(4) for p in self.digit_poses[f]])
+                    for f in fingers
+                },
+                "gt_object_pose": np.stack(self.gt_object_poses),
+            },
+        }
+
+
+def _export_digits(out: Path, i: int, frame: Frame, tracks: _Tracks) -> None:
+    """Write each finger's DIGIT image (and sim contact mask); note its pose, None if absent."""
+    for finger in FINGERS:
+        reading = frame.tactile.get(finger)
+        tracks.digit_poses[finger].append(None if reading is None else reading.world_T_sensor)
+        if reading is None:
+            continue
+        _write_jpg(out / "allegro" / finger / "image" / f"{i}.jpg", reading.image)
+        if reading.gt_contact_mask is not None:
+            _write_jpg(
+                out / "allegro" / finger / "mask" / f"{i}.jpg",
+                reading.gt_contact_mask.astype(np.uint8) * 255,
+            )
+
+
+def _export_camera(out: Path, i: int, frame: Frame, tracks: _Tracks) -> None:
+    """Write the camera's colour (and sim segmentation); note its depth and OpenGL pose."""
+    cam = frame.camera
+    if cam is None:
+        raise DataError(
+            f"frame {frame.index} has no camera image: FeelSight logs need one every frame"
+        )
+    # FeelSight names: front-left
+    tracks.camera_name = tracks.camera_name or cam.name.replace("_", "-")
+    tracks.camera_intrinsics = tracks.camera_intrinsics or cam.intrinsics
+    folder = out / "realsense" / tracks.camera_name
+    _write_jpg(folder / "image" / f"{i}.jpg", cam.rgb)
+    if cam.mask is not None:
+        _write_jpg(folder / "seg" / f"{i}.jpg", cam.mask.astype(np.uint8) * 255)
+    tracks.depths.append(-cam.depth.astype(np.float32))  # NeuralFeels' sim logs store -z (OpenGL)
+    tracks.camera_poses.append(cam.world_T_camera @ np.linalg.inv(OPENGL_T_OPENCV))
+
+
 def export_feelsight(frames: Iterable[Frame], out_dir: str | Path, total: int | None = None) -> int:
     """Write Frames in the FeelSight layout; returns the number of frames written."""
     out = Path(out_dir)
     if (out / "data.pkl").exists():
         raise DataError(f"{out} already holds a FeelSight log: choose another directory")
-    times, joints, object_poses, gt_object_poses = [], [], [], []
-    digit_poses: dict[str, list] = {f: [] for f in FINGERS}
-    depths, camera_poses = [], []
-    camera_name, camera_intrinsics = None, None
+    tracks = _Tracks()
     count = 0
     for i, frame in enumerate(tqdm(frames, total=total, desc="export FeelSight", unit="frame")):
-        times.append(frame.time_s)
-        joints.append(
-            np.full(16, np.nan)
-            if frame.joint_positions is None
-            else np.asarray(frame.joint_positions, np.float64)
-        )
-        object_poses.append(frame.world_T_object)
-        gt_object_poses.append(
-            frame.world_T_object if frame.gt_world_T_object is None else frame.gt_world_T_object
-        )
-        for finger in FINGERS:
-            reading = frame.tactile.get(finger)
-            digit_poses[finger].append(None if reading is None else reading.world_T_sensor)
-            if reading is None:
-                continue
-            _write_jpg(out / "allegro" / finger / "image" / f"{i}.jpg", reading.image)
-            if reading.gt_contact_mask is not None:
-                _write_jpg(
-                    out / "allegro" / finger / "mask" / f"{i}.jpg",
-                    reading.gt_contact_mask.astype(np.uint8) * 255,
-                )
-        cam = frame.camera
-        if cam is None:
-            raise DataError(
-                f"frame {frame.index} has no camera image: FeelSight logs need one every frame"
-            )
-        camera_name = camera_name or cam.name.replace("_", "-")  # FeelSight names: front-left
-        camera_intrinsics = camera_intrinsics or cam.intrinsics
-        folder = out / "realsense" / camera_name
-        _write_jpg(folder / "image" / f"{i}.jpg", cam.rgb)
-        if cam.mask is not None:
-            _write_jpg(folder / "seg" / f"{i}.jpg", cam.mask.astype(np.uint8) * 255)
-        depths.append(-cam.depth.astype(np.float32))  # NeuralFeels' sim logs store -z (OpenGL)
-        camera_poses.append(cam.world_T_camera @ np.linalg.inv(OPENGL_T_OPENCV))
+        tracks.add_state(frame)
+        _export_digits(out, i, frame, tracks)
+        _export_camera(out, i, frame, tracks)
         count += 1
     if count == 0:
         raise DataError("no frames to export")
     np.savez_compressed(
-        out / "realsense" / camera_name / "depth.npz",
-        depth=np.stack(depths),
+        out / "realsense" / tracks.camera_name / "depth.npz",
+        depth=np.stack(tracks.depths),
         depth_scale=np.float32(1.0),
     )
-    fingers = [f for f in FINGERS if any(p is not None for p in digit_poses[f])]
-    data = {
-        "time": np.asarray(times),
-        "digit_info": {
-            "intrinsics": _intrinsics_to_feelsight(DIGIT_INTRINSICS),
-            "cam_dist": GEL_DISTANCE_M,
-            "depth_scale": 1.0,
-        },
-        "allegro": {"base_pose": np.eye(4), "joint_state": np.stack(joints)},
-        "object": {"pose": list(np.stack(object_poses))},
-        "realsense": {
-            camera_name: {
-                "intrinsics": _intrinsics_to_feelsight(camera_intrinsics),
-                "pose": np.stack(camera_poses),
-            }
-        },
-        "semanticfeels": {
-            "digit_poses": {
-                f: np.stack([p if p is not None else np.eye(4) for p in digit_poses[f]])
-                for f in fingers
-            },
-            "gt_object_pose": np.stack(gt_object_poses),
-        },
-    }
+    data = tracks.data()
     with open(out / "data.pkl", "wb") as f:
         pickle.dump(data, f)
     return count
