@@ -21,7 +21,7 @@ import itertools
 import json
 import time
 from collections.abc import Sequence
-from dataclasses import asdict, dataclass
+from dataclasses import asdict, dataclass, field
 
 import mujoco
 import numpy as np
@@ -77,6 +77,102 @@ def finger_gaps(model: mujoco.MjModel, data: mujoco.MjData, geoms: dict[str, lis
     return gaps
 
 
+@dataclass
+class _Tally:
+    """What measure() gathers frame by frame, for n frames of the four fingers."""
+
+    contact: np.ndarray  # (n, fingers) contact mask has >= min_pixels pixels
+    touching: np.ndarray  # (n, fingers) the rig's touching flag
+    area: np.ndarray  # (n, fingers) contact pixels
+    press: np.ndarray  # (n, fingers) the rig's press depth (m)
+    gaps: dict[str, float]  # closest geom distance per finger pair
+    gel_distance: dict[str, float]  # closest gel centres per finger pair
+    violation: float = 0.0
+    rig_time: float = 0.0
+    touched: list = field(default_factory=list)
+
+    @classmethod
+    def empty(cls, n: int) -> _Tally:
+        gaps = {f"{a}-{b}": np.inf for a, b in itertools.combinations(FINGERS, 2)}
+        return cls(
+            contact=np.zeros((n, len(FINGERS)), bool),
+            touching=np.zeros((n, len(FINGERS)), bool),
+            area=np.zeros((n, len(FINGERS))),
+            press=np.zeros((n, len(FINGERS))),
+            gaps=gaps,
+            gel_distance=dict(gaps),
+        )
+
+
+def _tally_fingers(
+    tally: _Tally, i: int, state, limits: dict, renderers: dict, render: bool, min_pixels: int
+) -> None:
+    """Frame i per finger: touching flag, press, joint-limit excursion and (render) contact area."""
+    for j, f in enumerate(FINGERS):
+        tally.touching[i, j] = state.touching.get(f, False)
+        tally.press[i, j] = state.press_m.get(f, 0.0)
+        q = state.joint_positions[4 * j : 4 * j + 4]
+        lo, hi = limits[f][:, 0], limits[f][:, 1]
+        tally.violation = max(tally.violation, float(np.max(np.maximum(lo - q, q - hi))))
+        if render:
+            depth, _ = renderers[f].render_geometry(state.world_T_object, state.world_T_sensor[f])
+            px = int(np.count_nonzero((depth > 0) & (depth < GEL_DISTANCE_M)))
+            tally.area[i, j] = px
+            tally.contact[i, j] = px >= min_pixels
+
+
+def _tally_pairs(
+    tally: _Tally, model: mujoco.MjModel, data: mujoco.MjData, geoms: dict, state
+) -> None:
+    """The frame's closest approach per finger pair: geoms and gel centres."""
+    for pair, gap in finger_gaps(model, data, geoms).items():
+        tally.gaps[pair] = min(tally.gaps[pair], gap)
+    gels = {f: state.world_T_sensor[f] @ [0.0, 0.0, GEL_DISTANCE_M, 1.0] for f in FINGERS}
+    for a, b in itertools.combinations(FINGERS, 2):
+        d = float(np.linalg.norm(gels[a][:3] - gels[b][:3]))
+        tally.gel_distance[f"{a}-{b}"] = min(tally.gel_distance[f"{a}-{b}"], d)
+
+
+def _coverage(obj: MaterialObject, touched: list) -> float:
+    """Share of 4000 surface samples within 1 cm of a touched point."""
+    if not touched:
+        return 0.0
+    samples, _, _ = obj.sample_surface(4000, seed=0)
+    return float((cKDTree(np.array(touched)).query(samples)[0] < 0.01).mean())
+
+
+def _report(name: str, obj: MaterialObject, n: int, tally: _Tally, render: bool) -> ContactReport:
+    """The rounded per-finger and per-pair figures; without renders contact = touching."""
+    contact = tally.contact if render else tally.touching
+    touching, area, press = tally.touching, tally.area, tally.press
+    remakes = np.count_nonzero(~contact[:-1] & contact[1:], axis=0)
+    coverage = _coverage(obj, tally.touched)
+    return ContactReport(
+        object=name,
+        frames=n,
+        contact_fraction={f: round(float(contact[:, j].mean()), 3) for j, f in enumerate(FINGERS)},
+        remakes={f: int(remakes[j]) for j, f in enumerate(FINGERS)},
+        touching_fraction={
+            f: round(float(touching[:, j].mean()), 3) for j, f in enumerate(FINGERS)
+        },
+        mean_contact_px={
+            f: round(float(area[contact[:, j], j].mean()), 1) if contact[:, j].any() else 0.0
+            for j, f in enumerate(FINGERS)
+        },
+        mean_press_mm={
+            f: round(1000 * float(press[touching[:, j], j].mean()), 2)
+            if touching[:, j].any()
+            else 0.0
+            for j, f in enumerate(FINGERS)
+        },
+        min_finger_gap_m={k: round(float(v), 4) for k, v in tally.gaps.items()},
+        min_gel_distance_m={k: round(v, 4) for k, v in tally.gel_distance.items()},
+        joint_limit_violation_rad=round(max(tally.violation, 0.0), 6),
+        coverage=round(coverage, 3),
+        rig_updates_per_s=round(n / tally.rig_time, 2),
+    )
+
+
 def measure(
     name: str | MaterialObject,
     duration_s: float = 10.0,
@@ -103,72 +199,17 @@ def measure(
     geoms = finger_geoms(model)
     limits = rig.ik.limits
     n = int(np.floor(duration_s * fps + 1e-9))
-    contact = np.zeros((n, len(FINGERS)), bool)
-    touching = np.zeros((n, len(FINGERS)), bool)
-    area = np.zeros((n, len(FINGERS)))
-    press = np.zeros((n, len(FINGERS)))
-    pairs = list(itertools.combinations(FINGERS, 2))
-    gaps = {f"{a}-{b}": np.inf for a, b in pairs}
-    gel_distance = dict(gaps)
-    violation, rig_time = 0.0, 0.0
-    touched: list[np.ndarray] = []
+    tally = _Tally.empty(n)
     for i in range(n):
         start = time.perf_counter()
         state = rig.state_at(i / fps)
-        rig_time += time.perf_counter() - start
-        touched += [p for p in state.contact_point.values() if p is not None]
-        for j, f in enumerate(FINGERS):
-            touching[i, j] = state.touching.get(f, False)
-            press[i, j] = state.press_m.get(f, 0.0)
-            q = state.joint_positions[4 * j : 4 * j + 4]
-            lo, hi = limits[f][:, 0], limits[f][:, 1]
-            violation = max(violation, float(np.max(np.maximum(lo - q, q - hi))))
-            if render:
-                depth, _ = renderers[f].render_geometry(
-                    state.world_T_object, state.world_T_sensor[f]
-                )
-                px = int(np.count_nonzero((depth > 0) & (depth < GEL_DISTANCE_M)))
-                area[i, j] = px
-                contact[i, j] = px >= min_pixels
-        for pair, gap in finger_gaps(model, data, geoms).items():
-            gaps[pair] = min(gaps[pair], gap)
-        gels = {f: state.world_T_sensor[f] @ [0.0, 0.0, GEL_DISTANCE_M, 1.0] for f in FINGERS}
-        for a, b in pairs:
-            d = float(np.linalg.norm(gels[a][:3] - gels[b][:3]))
-            gel_distance[f"{a}-{b}"] = min(gel_distance[f"{a}-{b}"], d)
+        tally.rig_time += time.perf_counter() - start
+        tally.touched += [p for p in state.contact_point.values() if p is not None]
+        _tally_fingers(tally, i, state, limits, renderers, render, min_pixels)
+        _tally_pairs(tally, model, data, geoms, state)
     for renderer in renderers.values():
         renderer.close()
-    if not render:
-        contact = touching
-    remakes = np.count_nonzero(~contact[:-1] & contact[1:], axis=0)
-    coverage = 0.0
-    if touched:
-        samples, _, _ = obj.sample_surface(4000, seed=0)
-        coverage = float((cKDTree(np.array(touched)).query(samples)[0] < 0.01).mean())
-    return ContactReport(
-        object=name,
-        frames=n,
-        contact_fraction={f: round(float(contact[:, j].mean()), 3) for j, f in enumerate(FINGERS)},
-        remakes={f: int(remakes[j]) for j, f in enumerate(FINGERS)},
-        touching_fraction={
-            f: round(float(touching[:, j].mean()), 3) for j, f in enumerate(FINGERS)
-        },
-        mean_contact_px={
-            f: round(float(area[contact[:, j], j].mean()), 1) if contact[:, j].any() else 0.0
-            for j, f in enumerate(FINGERS)
-        },
-        mean_press_mm={
-            f: round(1000 * float(press[touching[:, j], j].mean()), 2)
-            if touching[:, j].any()
-            else 0.0
-            for j, f in enumerate(FINGERS)
-        },
-        min_finger_gap_m={k: round(float(v), 4) for k, v in gaps.items()},
-        min_gel_distance_m={k: round(v, 4) for k, v in gel_distance.items()},
-        joint_limit_violation_rad=round(max(violation, 0.0), 6),
-        coverage=round(coverage, 3),
-        rig_updates_per_s=round(n / rig_time, 2),
-    )
+    return _report(name, obj, n, tally, render)
 
 
 def table(reports: Sequence[ContactReport]) -> str:
