@@ -16,6 +16,7 @@ import resource
 import time
 
 import torch
+import torch.nn.functional as F
 
 POINTS = 4096
 NUM_CLASSES = 4
@@ -23,9 +24,53 @@ WARMUP_STEPS = 2
 MIN_STEPS, MAX_STEPS, TIME_BUDGET_S = 3, 30, 6.0
 
 
-def _measure(log2_table_size: int, sparse: bool, device: str) -> dict:
-    import torch.nn.functional as F
+def _sync(device: str) -> None:
+    if device.startswith("cuda"):
+        torch.cuda.synchronize()
 
+
+def _train_step(field, opt, g: torch.Generator, device: str) -> None:
+    """One step on 4096 random points: L1 loss to a 5 cm sphere's SDF plus material CE."""
+    x = (torch.rand(POINTS, 3, generator=g, device=device) * 2 - 1) * 0.1
+    labels = torch.randint(0, NUM_CLASSES, (POINTS,), generator=g, device=device)
+    out = field(x)
+    loss = (out["sdf"] - (x.norm(dim=-1) - 0.05)).abs().mean() + F.cross_entropy(
+        out["material_logits"], labels
+    )
+    opt.zero_grad(set_to_none=True)
+    loss.backward()
+    opt.step()
+
+
+def _time_steps(field, opt, g: torch.Generator, device: str) -> tuple[int, float, float]:
+    """Warm up, then step for TIME_BUDGET_S (MIN_STEPS..MAX_STEPS): steps, wall s, CPU s."""
+    for _ in range(WARMUP_STEPS):
+        _train_step(field, opt, g, device)
+    _sync(device)
+    if device.startswith("cuda"):
+        torch.cuda.reset_peak_memory_stats()
+    steps, start, cpu_start = 0, time.perf_counter(), time.process_time()
+    while steps < MAX_STEPS and (steps < MIN_STEPS or time.perf_counter() - start < TIME_BUDGET_S):
+        _train_step(field, opt, g, device)
+        _sync(device)
+        steps += 1
+    return steps, time.perf_counter() - start, time.process_time() - cpu_start
+
+
+def _query_seconds(field, device: str) -> float:
+    """Dense query time (marching cubes path): SDF only, no grad, one 65536-point chunk."""
+    q = (torch.rand(65536, 3, device=device) * 2 - 1) * 0.1
+    with torch.no_grad():
+        field.sdf(q)
+        _sync(device)
+        t0 = time.perf_counter()
+        for _ in range(3):
+            field.sdf(q)
+        _sync(device)
+        return (time.perf_counter() - t0) / 3
+
+
+def _measure(log2_table_size: int, sparse: bool, device: str) -> dict:
     from neuralfeels_sem.fields import FieldAdam, SemanticField
     from neuralfeels_sem.fields.hash_grid import HashGridConfig
     from neuralfeels_sem.fields.semantic_field import SemanticFieldConfig
@@ -37,47 +82,10 @@ def _measure(log2_table_size: int, sparse: bool, device: str) -> dict:
     field = SemanticField(config, bound=0.1).to(device)
     opt = FieldAdam(field.parameters(), lr=1e-3)
     g = torch.Generator(device=device).manual_seed(0)
-
-    def step() -> None:
-        x = (torch.rand(POINTS, 3, generator=g, device=device) * 2 - 1) * 0.1
-        labels = torch.randint(0, NUM_CLASSES, (POINTS,), generator=g, device=device)
-        out = field(x)
-        loss = (out["sdf"] - (x.norm(dim=-1) - 0.05)).abs().mean() + F.cross_entropy(
-            out["material_logits"], labels
-        )
-        opt.zero_grad(set_to_none=True)
-        loss.backward()
-        opt.step()
-
-    def sync() -> None:
-        if device.startswith("cuda"):
-            torch.cuda.synchronize()
-
-    for _ in range(WARMUP_STEPS):
-        step()
-    sync()
-    if device.startswith("cuda"):
-        torch.cuda.reset_peak_memory_stats()
-    steps, start, cpu_start = 0, time.perf_counter(), time.process_time()
-    while steps < MAX_STEPS and (steps < MIN_STEPS or time.perf_counter() - start < TIME_BUDGET_S):
-        step()
-        sync()
-        steps += 1
-    elapsed = time.perf_counter() - start
-    cpu = time.process_time() - cpu_start
+    steps, elapsed, cpu = _time_steps(field, opt, g, device)
     # ru_maxrss is in KiB on Linux; read it before the large query below.
     train_rss_mb = (resource.getrusage(resource.RUSAGE_SELF).ru_maxrss - rss0) / 1024
-
-    # Dense query throughput (marching cubes path): SDF only, no grad, 65536-point chunks.
-    q = (torch.rand(65536, 3, device=device) * 2 - 1) * 0.1
-    with torch.no_grad():
-        field.sdf(q)
-        sync()
-        t0 = time.perf_counter()
-        for _ in range(3):
-            field.sdf(q)
-        sync()
-        query_s = (time.perf_counter() - t0) / 3
+    query_s = _query_seconds(field, device)
 
     result = {
         "steps_per_s": round(steps / elapsed, 3),
