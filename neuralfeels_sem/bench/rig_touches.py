@@ -46,6 +46,57 @@ def _write_rgb(path: Path, image: np.ndarray) -> None:
     cv2.imwrite(str(path), cv2.cvtColor(image, cv2.COLOR_RGB2BGR))
 
 
+def _majority(out, num_classes: int) -> tuple[int, float] | None:
+    """The majority ground-truth class under the contact mask and its share (None: no labels)."""
+    labels = out.material[out.contact_mask]
+    labels = labels[labels >= 0]
+    if labels.size == 0:
+        return None
+    counts = np.bincount(labels, minlength=num_classes)
+    label = int(counts.argmax())
+    return label, float(counts[label] / labels.size)
+
+
+def _frame_touches(
+    root: Path,
+    name: str,
+    seed: int,
+    i: int,
+    state,
+    renderers: dict,
+    gate: ContactGate,
+    classes: Sequence[str],
+    min_purity: float,
+) -> list[dict]:
+    """Render frame i on every DIGIT; record each gated touch, write the pure ones."""
+    records = []
+    for finger, renderer in renderers.items():
+        out = renderer.render(state.world_T_object, state.world_T_sensor[finger])
+        mask = gate.mask(out.image, renderer.background_image)
+        if mask.mean() < gate.min_area:
+            continue
+        majority = _majority(out, len(classes))
+        if majority is None:
+            continue
+        label, purity = majority
+        records.append(
+            {
+                "object": name,
+                "frame": i,
+                "finger": finger,
+                "material": classes[label],
+                "purity": round(purity, 4),
+                "contact_px": int(out.contact_mask.sum()),
+                "edge_share": round(edge_share(mask, EDGE_PX), 4),
+                "written": purity >= min_purity,
+            }
+        )
+        if purity >= min_purity:
+            path = root / finger / classes[label] / f"{name}_{seed}_{i:04d}.png"
+            _write_rgb(path, out.image)
+    return records
+
+
 def collect(
     root: str | Path,
     objects: Sequence[str],
@@ -76,33 +127,9 @@ def collect(
                 _write_rgb(root / "_backgrounds" / f"{finger}.png", renderer.background_image)
             for i in range(frames):
                 state = rig.state_at(i / fps)
-                for finger, renderer in renderers.items():
-                    out = renderer.render(state.world_T_object, state.world_T_sensor[finger])
-                    mask = gate.mask(out.image, renderer.background_image)
-                    if mask.mean() < gate.min_area:
-                        continue
-                    labels = out.material[out.contact_mask]
-                    labels = labels[labels >= 0]
-                    if labels.size == 0:
-                        continue
-                    counts = np.bincount(labels, minlength=len(classes))
-                    label = int(counts.argmax())
-                    purity = float(counts[label] / labels.size)
-                    records.append(
-                        {
-                            "object": name,
-                            "frame": i,
-                            "finger": finger,
-                            "material": classes[label],
-                            "purity": round(purity, 4),
-                            "contact_px": int(out.contact_mask.sum()),
-                            "edge_share": round(edge_share(mask, EDGE_PX), 4),
-                            "written": purity >= min_purity,
-                        }
-                    )
-                    if purity >= min_purity:
-                        path = root / finger / classes[label] / f"{name}_{seed}_{i:04d}.png"
-                        _write_rgb(path, out.image)
+                records += _frame_touches(
+                    root, name, seed, i, state, renderers, gate, classes, min_purity
+                )
                 progress.update(1)
         finally:
             for renderer in renderers.values():
