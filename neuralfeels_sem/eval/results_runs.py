@@ -12,18 +12,11 @@ import yaml
 
 from neuralfeels_sem.core.errors import DataError
 from neuralfeels_sem.eval.aggregate import read_job
+from neuralfeels_sem.eval.oracles import ORACLES, oracles_used
 
 # Overrides that do not change what a run measures.
 BOOKKEEPING_KEYS = ("seed", "experiment", "launcher")
 BOOKKEEPING_VALUES = {"task": "map", "sensor": "sim"}
-# What each simulator oracle is (names as metrics.json["oracles"]); a real rig has none.
-ORACLES = {
-    "object_pose": "ground-truth object pose (mapping.pose=gt)",
-    "camera_mask": "the simulator's camera object mask (mapping.mapper.use_camera_mask=true)",
-    "tactile_contact_depth": "the simulator's tactile contact depth (mapping.mapper.tactile_depth.source=gt)",
-    "noise_free_depth": "noise-free camera depth (sensor.rgbd.depth_noise_std=0)",
-    "material_labels": "ground-truth material labels (classifier=oracle)",
-}
 SINGLE_MATERIAL_FLOOR = 100.0 - 1e-6  # majority map's mean-class % on a one-material object
 
 
@@ -170,37 +163,13 @@ def load_source(path: Path) -> Source:
 
 
 # ---------------------------------------------------------------------------- oracles
-def oracles_from_config(config: dict) -> list[str]:
-    """The oracles a run used, from its composed config (as tasks/build.py oracles_used records them)."""
-    sensor = config.get("sensor") or {}
-    if sensor.get("name") != "sim":
-        return []
-    mapping = config.get("mapping") or {}
-    mapper = mapping.get("mapper") or {}
-    depth_noise = (sensor.get("rgbd") or {}).get("depth_noise_std", 0.0)
-    try:
-        noise_free = float(depth_noise) == 0.0
-    except (TypeError, ValueError):
-        noise_free = False
-    used = {
-        "object_pose": mapping.get("pose") == "gt",
-        "camera_mask": mapper.get("use_camera_mask") is True,
-        "tactile_contact_depth": (mapper.get("tactile_depth") or {}).get("source") == "gt",
-        "noise_free_depth": noise_free,
-        "material_labels": str((config.get("classifier") or {}).get("_target_", "")).endswith(
-            "OracleClassifier"
-        ),
-    }
-    return [name for name, on in used.items() if on]
-
-
 def oracles_of(run: Run) -> tuple[tuple[str, ...] | None, str]:
     """(oracle names, where they were read) or (None, reason) when nothing tells."""
     recorded = run.metrics.get("oracles")
     if isinstance(recorded, list):
         return tuple(str(o) for o in recorded), "metrics.json"
     if run.config is not None:
-        return tuple(oracles_from_config(run.config)), ".hydra/config.yaml"
+        return tuple(oracles_used(run.config)), ".hydra/config.yaml"
     return None, "not recorded"
 
 

@@ -44,18 +44,3 @@ def build_mapper(cfg: DictConfig, bound: float, device) -> OnlineMapper:
 def model_config(cfg: DictConfig) -> dict:
     """What a checkpoint must match to resume: the composed model config."""
     return OmegaConf.to_container(cfg.model, resolve=True)
-
-
-def oracles_used(cfg: DictConfig) -> list[str]:
-    """The simulator's ground truth a run's perception or pose used (a real rig has none)."""
-    if cfg.sensor.name != "sim":
-        return []
-    mapper = cfg.mapping.mapper
-    used = {
-        "object_pose": cfg.mapping.pose == "gt",
-        "camera_mask": bool(mapper.get("use_camera_mask", False)),
-        "tactile_contact_depth": mapper.get("tactile_depth", {}).get("source") == "gt",
-        "noise_free_depth": float(cfg.sensor.get("rgbd", {}).get("depth_noise_std", 0.0)) == 0.0,
-        "material_labels": str(cfg.classifier.get("_target_", "")).endswith("OracleClassifier"),
-    }
-    return [name for name, on in used.items() if on]

@@ -17,6 +17,7 @@ from hydra.utils import instantiate
 from omegaconf import DictConfig
 
 from neuralfeels_sem.configs import to_config
+from neuralfeels_sem.eval.oracles import oracles_used
 from neuralfeels_sem.mapping.pose_source import build_pose_source
 from neuralfeels_sem.mapping.pose_tracker import TrackerConfig
 from neuralfeels_sem.pipeline.mapping_session import MappingSession, SessionSettings
@@ -32,7 +33,6 @@ from neuralfeels_sem.tasks.build import (
     build_mapper,
     build_scorer,
     model_config,
-    oracles_used,
 )
 from neuralfeels_sem.tasks.runner import output_dir
 from neuralfeels_sem.utils.device import resolve_device
