@@ -105,6 +105,7 @@ class RunScorer:
         self.seed = seed
         self.curve: list[list[float]] = []  # [frame_index, time_s, matching_pct]
         self.mean_class_curve: list[list[float]] = []  # [frame_index, time_s, mean-class %]
+        self._majority: dict | None = None  # majority_baseline(), once computed
         self.touch_log: list[list] = []  # [frame_index, finger, predicted, gt or -1, confidence]
 
     # ---------------------------------------------------------------- during the run
@@ -161,17 +162,19 @@ class RunScorer:
         """
         if self.matching is None:
             return {}
-        majority = self.matching.majority_class
+        if self._majority is None:  # fixed by the samples: computed once (logged, then reported)
+            majority = self.matching.majority_class
 
-        def constant(points: np.ndarray) -> np.ndarray:
-            return np.full(len(points), majority, dtype=np.int64)
+            def constant(points: np.ndarray) -> np.ndarray:
+                return np.full(len(points), majority, dtype=np.int64)
 
-        out = self.matching.evaluate(constant)
-        out["matching_pct_image"] = self.images.maps(constant)["matching_pct_image"]
-        out["matching_mesh_pct"] = out["matching_pct"]
-        out["matching_mesh_mean_class_pct"] = out["matching_mean_class_pct"]
-        out["material"] = self.class_names[majority]
-        return out
+            out = self.matching.evaluate(constant)
+            out["matching_pct_image"] = self.images.maps(constant)["matching_pct_image"]
+            out["matching_mesh_pct"] = out["matching_pct"]
+            out["matching_mesh_mean_class_pct"] = out["matching_mean_class_pct"]
+            out["material"] = self.class_names[majority]
+            self._majority = out
+        return dict(self._majority)
 
     def field_metrics(
         self, field: nn.Module, bound: float, field_T_gt: np.ndarray | None = None
