@@ -45,7 +45,7 @@ def plot_matching_curve(
 
     `curve` is plain matching, `mean_class_curve` the mean-class form (drawn first when
     given); `majority` the constant majority map's figures (dashed, same colours);
-    `baseline` the untrained field's plain matching (grey, dotted).
+    `baseline` the untrained field's plain matching (grey, dashed).
     """
     curves = {"matching": curve}
     if mean_class_curve:
