@@ -41,7 +41,6 @@ from neuralfeels_sem.sim.ik import FingerTarget, FingertipIK
 from neuralfeels_sem.sim.kinematics import HandKinematics
 from neuralfeels_sem.sim.policy import Contact, FingerPlan, GaitingPolicy
 from neuralfeels_sem.sim.rig_params import (
-    BOTTOM_COS,
     DEFAULT_PRESS_M,
     FLAT_BASE_SHARE,
     GRASP_REACH_M,
@@ -49,7 +48,6 @@ from neuralfeels_sem.sim.rig_params import (
     LOST_CONTACT_M,
     MEMORY,
     NOMINAL_Q,
-    OVERLAP_TOLERANCE_M,
     PALM_CLEARANCE_M,
     PLAN_ORDER,
     REST_Q,
@@ -59,18 +57,6 @@ from neuralfeels_sem.sim.rig_params import (
 from neuralfeels_sem.sim.rig_probes import GEL_GRID_RAYS, RigProbes
 from neuralfeels_sem.sim.scene import SimScene
 from neuralfeels_sem.sim.trajectory import ObjectTrajectory
-
-# Constants and helpers other modules import from here.
-__all__ = [
-    "BOTTOM_COS",
-    "DEFAULT_PRESS_M",
-    "NOMINAL_Q",
-    "OVERLAP_TOLERANCE_M",
-    "REST_Q",
-    "RigState",
-    "SimRig",
-    "flat_base_share",
-]
 
 
 @dataclass

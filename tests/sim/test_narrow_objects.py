@@ -13,7 +13,7 @@ import pytest
 
 from neuralfeels_sem.bench.finger_contacts import ContactReport, measure
 from neuralfeels_sem.core.hand import FINGERS
-from neuralfeels_sem.sim.rig import OVERLAP_TOLERANCE_M
+from neuralfeels_sem.sim.rig_params import OVERLAP_TOLERANCE_M
 
 
 @pytest.fixture(scope="module")

@@ -11,7 +11,8 @@ from neuralfeels_sem.bench.finger_contacts import finger_gaps, finger_geoms
 from neuralfeels_sem.core.hand import FINGERS
 from neuralfeels_sem.objects.material_object import MaterialObject
 from neuralfeels_sem.sim.kinematics import HandKinematics
-from neuralfeels_sem.sim.rig import BOTTOM_COS, OVERLAP_TOLERANCE_M, SimRig
+from neuralfeels_sem.sim.rig import SimRig
+from neuralfeels_sem.sim.rig_params import BOTTOM_COS, OVERLAP_TOLERANCE_M
 from tests.sim.shapes import CLASSES, two_material_sphere
 
 
@@ -131,7 +132,7 @@ def test_an_alternate_axis_brings_the_poles_round_to_the_fingers() -> None:
 
 
 def test_fingers_keep_off_a_flat_base_that_the_alternate_axis_brings_round() -> None:
-    from neuralfeels_sem.sim.rig import flat_base_share
+    from neuralfeels_sem.sim.rig_params import flat_base_share
 
     mesh = trimesh.creation.cylinder(radius=0.03, height=0.06, sections=48)
     obj = MaterialObject("can", mesh, np.zeros(len(mesh.faces), int), CLASSES)

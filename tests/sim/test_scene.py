@@ -9,7 +9,7 @@ from neuralfeels_sem.core.geometry import look_at
 from neuralfeels_sem.core.hand import FINGERS
 from neuralfeels_sem.core.materials import DEFAULT_MATERIALS
 from neuralfeels_sem.sim.kinematics import HandKinematics
-from neuralfeels_sem.sim.rig import NOMINAL_Q
+from neuralfeels_sem.sim.rig_params import NOMINAL_Q
 from neuralfeels_sem.sim.scene import SimScene
 from tests.sim.shapes import box, two_material_sphere
 
