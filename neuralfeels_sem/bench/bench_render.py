@@ -17,7 +17,8 @@ import trimesh
 from neuralfeels_sem.core.materials import DEFAULT_MATERIALS
 from neuralfeels_sem.objects.material_object import MaterialObject
 from neuralfeels_sem.sim.camera_renderer import CameraRenderer, front_left_camera_pose
-from neuralfeels_sem.sim.tactile_renderer import DigitRenderer, pose_pressing
+from neuralfeels_sem.sim.digit_poses import pose_pressing
+from neuralfeels_sem.sim.tactile_renderer import DigitRenderer
 
 REPEATS = 30
 

@@ -41,6 +41,7 @@ from neuralfeels_sem.core.errors import ConfigError, DataError
 from neuralfeels_sem.core.geometry import rotation_matrix
 from neuralfeels_sem.objects.material_object import MaterialObject
 from neuralfeels_sem.sim.backgrounds import finger_seed
+from neuralfeels_sem.sim.digit_poses import pose_pressing, pose_pressing_edge
 from neuralfeels_sem.sim.touch_sources import (
     FeatureEdges,
     library_objects,
@@ -253,8 +254,6 @@ def _press_pose(
 ) -> tuple[np.ndarray, bool]:
     """The sensor pose pressing `touch` (depth around the finger's firmness, tilted,
     rolled; with a gel edge for a share edge_press_fraction) and whether it is an edge press."""
-    from neuralfeels_sem.sim.tactile_renderer import pose_pressing, pose_pressing_edge
-
     firmness = {f: float(v) / 1000.0 for f, v in settings.firmness_mm.items()}
     mean = firmness.get(sensor, 0.0015)
     press = float(

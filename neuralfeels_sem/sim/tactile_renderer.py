@@ -10,7 +10,7 @@ shaded by three coloured LEDs (red, green, blue from different sides) as a chang
 the sensor's own no-contact background image, plus Gaussian pixel noise.
 
 Shading is done in numpy rather than with pyrender lights (gel_optics.py). Poses of a
-pressing DIGIT are in digit_poses.py (re-exported here), the materials figure in
+pressing DIGIT are in digit_poses.py, the materials figure in
 contact_sheet.py.
 
 One DigitRenderer per finger: each holds its own background, noise stream and GL
@@ -35,7 +35,6 @@ from neuralfeels_sem.core.digit import (
 from neuralfeels_sem.core.geometry import Intrinsics, check_pose, invert_pose
 from neuralfeels_sem.objects.material_object import IGNORE, MaterialObject
 from neuralfeels_sem.sim.backgrounds import resolve_background
-from neuralfeels_sem.sim.digit_poses import pose_pressing, pose_pressing_edge
 from neuralfeels_sem.sim.gel_optics import (
     MAX_RELIEF_M,
     SOFT_REACH_M,
@@ -55,15 +54,6 @@ from neuralfeels_sem.sim.pyrender_utils import (
     split_by_material,
 )
 from neuralfeels_sem.sim.textures import MicroTexture, compliance_for, specular_for, texture_for
-
-# pose_pressing, pose_pressing_edge and MAX_RELIEF_M keep their import path from here.
-__all__ = [
-    "MAX_RELIEF_M",
-    "DigitRenderer",
-    "TactileRender",
-    "pose_pressing",
-    "pose_pressing_edge",
-]
 
 _NOISE_FRAMES, _NOISE_PAD = 8, 64  # noise bank: frames, extra rows/columns for random windows
 

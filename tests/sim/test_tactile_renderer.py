@@ -23,11 +23,8 @@ from neuralfeels_sem.sim.backgrounds import (
     resolve_background,
 )
 from neuralfeels_sem.sim.contact_sheet import contact_sheet
-from neuralfeels_sem.sim.tactile_renderer import (
-    DigitRenderer,
-    pose_pressing,
-    pose_pressing_edge,
-)
+from neuralfeels_sem.sim.digit_poses import pose_pressing, pose_pressing_edge
+from neuralfeels_sem.sim.tactile_renderer import DigitRenderer
 
 MATERIALS = tuple(DEFAULT_MATERIALS)
 RADIUS = 0.025

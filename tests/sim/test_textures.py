@@ -12,7 +12,8 @@ from neuralfeels_sem.core.digit import DIGIT_INTRINSICS, GEL_DISTANCE_M
 from neuralfeels_sem.core.errors import ConfigError
 from neuralfeels_sem.core.materials import DEFAULT_MATERIALS
 from neuralfeels_sem.objects.material_object import MaterialObject
-from neuralfeels_sem.sim.tactile_renderer import DigitRenderer, pose_pressing
+from neuralfeels_sem.sim.digit_poses import pose_pressing
+from neuralfeels_sem.sim.tactile_renderer import DigitRenderer
 from neuralfeels_sem.sim.textures import (
     FabricTexture,
     MetalTexture,
@@ -239,7 +240,7 @@ def test_materials_give_statistically_different_images_at_equal_press() -> None:
 
 
 def test_no_texture_rises_above_the_renderers_reach_margin() -> None:
-    from neuralfeels_sem.sim.tactile_renderer import MAX_RELIEF_M
+    from neuralfeels_sem.sim.gel_optics import MAX_RELIEF_M
 
     pts = np.random.default_rng(5).uniform(-0.03, 0.03, (100000, 3)).astype(np.float32)
     for name in (*MATERIALS, "unknown"):
