@@ -81,6 +81,13 @@ def read_job(job_dir: Path) -> dict | None:
     return job
 
 
+def mean_and_std(values: list[float]) -> tuple[float, float]:
+    """Mean and sample standard deviation (n - 1; 0 for one value) of a non-empty list."""
+    mean = sum(values) / len(values)
+    var = sum((v - mean) ** 2 for v in values) / (len(values) - 1) if len(values) > 1 else 0.0
+    return mean, math.sqrt(var)
+
+
 def group_jobs(jobs: list[dict]) -> list[dict]:
     varying = sorted(
         {
@@ -101,11 +108,8 @@ def group_jobs(jobs: list[dict]) -> list[dict]:
         stats = {}
         for name in names:
             values = [j["metrics"][name] for j in members if name in j["metrics"]]
-            mean = sum(values) / len(values)
-            var = (
-                sum((v - mean) ** 2 for v in values) / (len(values) - 1) if len(values) > 1 else 0.0
-            )
-            stats[name] = {"mean": mean, "std": math.sqrt(var), "n": len(values)}
+            mean, std = mean_and_std(values)
+            stats[name] = {"mean": mean, "std": std, "n": len(values)}
         groups.append(
             {
                 "group": dict(zip(varying, key)),

@@ -6,6 +6,7 @@ import math
 from collections.abc import Iterable, Sequence
 from typing import Any
 
+from neuralfeels_sem.eval.aggregate import mean_and_std
 from neuralfeels_sem.eval.results_runs import Run, Source, get
 
 
@@ -21,17 +22,12 @@ def values_of(runs: Iterable[Run], key: str, scale: float = 1.0) -> list[float]:
 
 
 def mean(values: Sequence[float]) -> float | None:
-    return sum(values) / len(values) if values else None
+    return mean_and_std(list(values))[0] if values else None
 
 
 def std(values: Sequence[float]) -> float | None:
     """Sample standard deviation (n - 1); 0 for one value."""
-    if not values:
-        return None
-    if len(values) == 1:
-        return 0.0
-    m = sum(values) / len(values)
-    return math.sqrt(sum((v - m) ** 2 for v in values) / (len(values) - 1))
+    return mean_and_std(list(values))[1] if values else None
 
 
 def fmt(value: float | None, digits: int = 1, sign: bool = False) -> str:
