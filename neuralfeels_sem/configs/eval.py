@@ -4,6 +4,8 @@ from __future__ import annotations
 
 from dataclasses import dataclass, field
 
+from neuralfeels_sem.eval.mesh_transfer import check_tolerance
+
 
 @dataclass
 class EvalConfig:
@@ -49,11 +51,7 @@ class EvalConfig:
             raise ValueError(f"eval.shape_samples={self.shape_samples} must be >= 100")
         if not 16 <= self.mesh_resolution <= 1024:
             raise ValueError(f"eval.mesh_resolution={self.mesh_resolution} must be in 16..1024")
-        if not self.mesh_match_tolerance_m > 0:  # also refuses NaN
-            raise ValueError(
-                f"eval.mesh_match_tolerance_m={self.mesh_match_tolerance_m} must be a distance > 0 "
-                "in metres (e.g. 0.005)"
-            )
+        check_tolerance(self.mesh_match_tolerance_m)  # the check labels_from_mesh makes
         if self.seed < 0:
             raise ValueError(f"eval.seed={self.seed} must be >= 0")
 
