@@ -57,6 +57,17 @@ def resolve_path(path: str | Path) -> Path:
     return (REPO_DIR / path).resolve()
 
 
+def data_summary(root: str | Path, loaded: LoadedSet) -> dict:
+    """A report's `data` entry: the resolved root, the images loaded and those skipped or resized."""
+    return {
+        "root": str(resolve_path(root)),
+        "images": len(loaded.labels),
+        "skipped_unreadable": loaded.skipped_unreadable,
+        "skipped_files": loaded.skipped_files,
+        "resized_wrong_size": loaded.resized_wrong_size,
+    }
+
+
 def scan_dataset(
     root: str | Path,
     class_names: list[str],

@@ -17,10 +17,10 @@ import cv2
 import numpy as np
 
 from neuralfeels_sem.perception.classifier.dataset import (
+    data_summary,
     load_backgrounds,
     load_samples,
     press_kinds,
-    resolve_path,
     scan_dataset,
 )
 from neuralfeels_sem.perception.classifier.evaluate import (
@@ -66,13 +66,7 @@ def evaluate_on_folder(
         report["per_press_kind"] = per_press_kind(loaded.labels, pred, kinds)
     report["val_accuracy"] = ckpt.meta.get("val_accuracy")
     report["checkpoint"] = str(classifier.checkpoint_path)
-    report["data"] = {
-        "root": str(resolve_path(root)),
-        "images": len(loaded.labels),
-        "skipped_unreadable": loaded.skipped_unreadable,
-        "skipped_files": loaded.skipped_files,
-        "resized_wrong_size": loaded.resized_wrong_size,
-    }
+    report["data"] = data_summary(root, loaded)
     write_report(report, out_dir, "evaluation")
     _log(report, len(pred), out_dir)
     return report

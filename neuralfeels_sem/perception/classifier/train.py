@@ -25,6 +25,7 @@ from neuralfeels_sem.perception.classifier.dataset import (
     LoadedSet,
     Sample,
     class_counts,
+    data_summary,
     load_backgrounds,
     load_samples,
     press_kinds,
@@ -217,11 +218,7 @@ def _report(predict, loaded: LoadedSet, parts: dict, data_root: str, class_names
         report["per_press_kind"] = per_press_kind(loaded.labels[te], test_pred, kinds[te])
     report["counts"] = {"train": len(parts["train"]), "val": len(va), "test": len(te)}
     report["data"] = {
-        "root": str(resolve_path(data_root)),
-        "images": len(loaded.labels),
-        "skipped_unreadable": loaded.skipped_unreadable,
-        "skipped_files": loaded.skipped_files,
-        "resized_wrong_size": loaded.resized_wrong_size,
+        **data_summary(data_root, loaded),
         "per_sensor_class": class_counts(loaded.labels, loaded.sensors, class_names),
     }
     return report
