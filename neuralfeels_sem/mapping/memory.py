@@ -123,9 +123,6 @@ class MapMemory:
         )
         return len(keep)
 
-    def update_keyframe_losses(self, keyframe_ids: list[int], losses: list[float]) -> None:
-        self.keyframes.update_losses(keyframe_ids, losses)
-
     # ------------------------------------------------------------------ state
     def state_dict(self) -> dict:
         return {
