@@ -90,12 +90,13 @@ class MapMemory:
         keep = subsample(
             len(pts), self.camera_points_per_frame, self.generator, replace_if_short=False
         )
+        kept = pts[keep.numpy()]
         origin, _ = sensor_origin_and_axis(frame.camera.world_T_camera, pose)
-        self.keyframes.add(self._tensor(pts[keep.numpy()]), self._tensor(origin), frame.index)
+        self.keyframes.add(self._tensor(kept), self._tensor(origin), frame.index)
         if self.space_prior is not None:
             # Every pixel's ray, hand and background included, crosses free space.
             self.space_prior.carve(origin, every_pixel, self.truncation)
-            self.space_prior.add_surface(pts[keep.numpy()])
+            self.space_prior.add_surface(kept)
         return len(keep)
 
     def _add_touch(
@@ -109,12 +110,13 @@ class MapMemory:
         keep = subsample(
             len(pts), self.tactile_points_per_touch, self.generator, replace_if_short=True
         )
+        kept = pts[keep.numpy()]
         _, axis = sensor_origin_and_axis(frame.tactile[finger].world_T_sensor, pose)
         if self.space_prior is not None:
-            self.space_prior.add_surface(pts[keep.numpy()])
+            self.space_prior.add_surface(kept)
         usable = label is not None and label.usable
         self.touches.add(
-            self._tensor(pts[keep.numpy()]),
+            self._tensor(kept),
             self._tensor(axis),
             label.label if usable else -1,
             label.confidence if usable else 0.0,
