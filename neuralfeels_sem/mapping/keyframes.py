@@ -37,10 +37,6 @@ class KeyframeBuffer:
     def __len__(self) -> int:
         return len(self.points)
 
-    @property
-    def num_points(self) -> int:
-        return sum(int(p.shape[0]) for p in self.points)
-
     def add(self, points: torch.Tensor, origin: torch.Tensor, frame_index: int) -> None:
         check_points(points, "keyframe points")
         if origin.shape != (3,):

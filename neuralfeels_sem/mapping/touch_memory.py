@@ -111,10 +111,6 @@ class TouchBuffer:
         self.tensors()
         return self._num_outvoted
 
-    @property
-    def num_points(self) -> int:
-        return sum(int(p.shape[0]) for p in self._points)
-
     def state_dict(self) -> dict:
         return {
             "points": list(self._points),
