@@ -69,10 +69,11 @@ class TrackerConfig:
             raise ValueError(
                 f"mapping.tracker.robust_loss={self.robust_loss!r} must be one of {ROBUST_LOSSES}"
             )
-        for name in ("robust_scale", "damping", "rotation_scale", "tolerance"):
-            if getattr(self, name) <= 0:
-                raise ValueError(f"mapping.tracker.{name}={getattr(self, name)} must be > 0")
-        for name in ("max_step_m", "max_step_rad", "max_motion_m"):
+        positive = (
+            "robust_scale", "damping", "rotation_scale", "tolerance",
+            "max_step_m", "max_step_rad", "max_motion_m",
+        )  # fmt: skip
+        for name in positive:
             if getattr(self, name) <= 0:
                 raise ValueError(f"mapping.tracker.{name}={getattr(self, name)} must be > 0")
         if self.prior_weight < 0:
