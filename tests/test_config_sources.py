@@ -60,9 +60,7 @@ def _leaves(node, path: str = ""):
     if isinstance(node, dict):
         for key, value in node.items():
             yield from _leaves(value, f"{path}.{key}" if path else key)
-    elif isinstance(node, list):
-        yield path, node
-    else:
+    else:  # a value or a list
         yield path, node
 
 
