@@ -34,6 +34,7 @@ from neuralfeels_sem.eval.results_runs import (
 )
 from neuralfeels_sem.eval.results_tables import (
     multi_material_table,
+    perception_table,
     settings_table,
     single_material_table,
     values_of,
@@ -137,6 +138,19 @@ def render(sources: Sequence[Source], command: str) -> str:
         "",
     ]
     lines += single_material_table(single) if single else ["No single-material runs."]
+    perception = perception_table(runs)
+    if perception:
+        lines += [
+            "",
+            "## Perception against the simulator's ground truth",
+            "",
+            'Mean ± std over runs of the per-run figures of `metrics.json["perception"]`:',
+            "the segmented camera mask's IoU with the true object mask, camera frames whose",
+            "object could not be found (skipped, never fused), and the touches' contact IoU and",
+            "depth error on true contact pixels (see [perception](perception.md)).",
+            "",
+            *perception,
+        ]
     lines += ["", "## Other settings", ""]
     other = False
     for source in sources:

@@ -7,7 +7,7 @@ from collections.abc import Iterable, Sequence
 from typing import Any
 
 from neuralfeels_sem.eval.aggregate import mean_and_std
-from neuralfeels_sem.eval.results_runs import Run, Source, get
+from neuralfeels_sem.eval.results_runs import Run, Source, get, oracles_of
 
 
 # ---------------------------------------------------------------------------- statistics
@@ -97,6 +97,29 @@ def table(header: Sequence[str], rows: Sequence[Sequence[str]]) -> list[str]:
     return lines
 
 
+# Short names of the oracles for table cells (metrics.json names -> cell text).
+ORACLE_SHORT = {
+    "object_pose": "pose",
+    "camera_mask": "mask",
+    "tactile_contact_depth": "touch depth",
+    "noise_free_depth": "clean depth",
+    "material_labels": "labels",
+}
+
+
+def oracles_cell(run: Run) -> str:
+    """The simulator ground truth a run used, in short names ("none" for a real rig's inputs)."""
+    names, _ = oracles_of(run)
+    if names is None:
+        return "not recorded"
+    return ", ".join(ORACLE_SHORT.get(n, n) for n in names) or "none"
+
+
+def by_object_and_oracles(runs: Iterable[Run]) -> dict[tuple[str, str], list[Run]]:
+    """Runs of one object are only pooled when they leaned on the same oracles."""
+    return group_by(runs, lambda r: (r.object, oracles_cell(r)))
+
+
 def group_by(runs: Iterable[Run], key) -> dict[Any, list[Run]]:
     groups: dict[Any, list[Run]] = {}
     for run in runs:
@@ -106,7 +129,7 @@ def group_by(runs: Iterable[Run], key) -> dict[Any, list[Run]]:
 
 def multi_material_table(runs: Sequence[Run]) -> list[str]:
     rows = []
-    for obj, members in group_by(runs, lambda r: r.object).items():
+    for (obj, oracles), members in by_object_and_oracles(runs).items():
         members = by_seed(members)
         per_seed = ", ".join(
             fmt(get(r.metrics, "matching_mean_class_pct"))
@@ -117,6 +140,7 @@ def multi_material_table(runs: Sequence[Run]) -> list[str]:
         rows.append(
             [
                 f"`{obj}`",
+                oracles,
                 seeds_text(members),
                 per_seed or "n/a",
                 "**" + mean_std(values_of(members, "matching_mean_class_pct")) + "**",
@@ -132,6 +156,7 @@ def multi_material_table(runs: Sequence[Run]) -> list[str]:
     return table(
         [
             "object",
+            "oracles",
             "seeds",
             "mean-class % per seed",
             "mean-class % (mean ± std)",
@@ -149,10 +174,11 @@ def multi_material_table(runs: Sequence[Run]) -> list[str]:
 
 def single_material_table(runs: Sequence[Run]) -> list[str]:
     rows = []
-    for obj, members in group_by(runs, lambda r: r.object).items():
+    for (obj, oracles), members in by_object_and_oracles(runs).items():
         rows.append(
             [
                 f"`{obj}`",
+                oracles,
                 str(len(members)),
                 seeds_text(members),
                 mean_std(values_of(members, "classifier_accuracy.overall", 100.0)),
@@ -164,6 +190,7 @@ def single_material_table(runs: Sequence[Run]) -> list[str]:
     return table(
         [
             "object",
+            "oracles",
             "runs",
             "seeds",
             "classifier acc. on judged touches %",
@@ -215,3 +242,22 @@ def settings_table(source: Source, runs: Sequence[Run]) -> list[str]:
         fixed = ", ".join(f"`{k}={runs[0].setting[k]}`" for k in constant)
         lines += [f"Every run here: {fixed}.", ""]
     return lines + table(header, rows)
+
+
+PERCEPTION_KEYS = (
+    ("perception.camera_mask_iou", "camera mask IoU", 3),
+    ("perception.camera_frames_skipped", "camera frames skipped", 1),
+    ("perception.tactile_contact_iou", "touch contact IoU", 3),
+    ("perception.tactile_depth_mae_mm", "touch depth MAE mm", 3),
+)
+
+
+def perception_table(runs: Sequence[Run]) -> list[str]:
+    """Per object and oracles: how well perception matched the simulator's ground truth."""
+    rows = []
+    for (obj, oracles), members in by_object_and_oracles(runs).items():
+        cells = [mean_std(values_of(members, key), digits) for key, _, digits in PERCEPTION_KEYS]
+        if any(c != "n/a" for c in cells):
+            rows.append([f"`{obj}`", oracles, str(len(members)), *cells])
+    header = ["object", "oracles", "runs"] + [name for _, name, _ in PERCEPTION_KEYS]
+    return table(header, rows) if rows else []

@@ -72,6 +72,12 @@ def cells(page: str, first: str) -> list[str]:
     raise AssertionError(f"no row {first!r} in:\n{page}")
 
 
+def table_rows(page: str) -> list[list[str]]:
+    """The cells of every table row of `page` (header and separator rows left out)."""
+    lines = [line for line in page.splitlines() if line.startswith("|")]
+    return [[c.strip() for c in line.strip().strip("|").split("|")] for line in lines[2:]]
+
+
 def section(page: str, title: str) -> str:
     return page.split(f"## {title}\n", 1)[1].split("\n## ", 1)[0]
 
@@ -136,6 +142,8 @@ def test_multi_material_row_holds_the_per_seed_figures_and_the_floor(
     page = generate(tmp_path, object_sweep)
     multi = section(page, "Multi-material objects")
     row = cells(multi, "`patched_toy`")
+    assert row[1] == "pose, mask"  # the simulator ground truth these runs used
+    row = row[:1] + row[2:]
     assert row[1] == "0-3"
     assert row[2] == "97.0, 91.0, 95.0, 99.0"
     mean, std = statistics.mean(PATCHED), statistics.stdev(PATCHED)
@@ -148,7 +156,7 @@ def test_multi_material_row_holds_the_per_seed_figures_and_the_floor(
     assert row[9] == "99.0"  # classifier on judged touches, %
     assert row[10] == "75.0"  # coverage, %
     row = cells(multi, "`patchwork`")
-    assert row[1:6] == ["0-1", "80.0, 70.0", "**75.0 ± 7.1**", "25.0 (plastic)", "+50.0"]
+    assert row[1:7] == ["pose", "0-1", "80.0, 70.0", "**75.0 ± 7.1**", "25.0 (plastic)", "+50.0"]
     # The single-material object is not scored by matching.
     assert "yarn_ball" not in multi
 
@@ -161,7 +169,15 @@ def test_single_material_objects_are_reported_by_the_classifier(
     row = cells(single, "`yarn_ball`")
     all_touches = [100 * 1.0 * 0.8, 100 * 0.9 * 0.6]
     spread = f"{statistics.stdev(all_touches):.1f}"
-    assert row[1:] == ["2", "0-1", "95.0 ± 7.1", "70.0 ± 14.1", f"67.0 ± {spread}", "0.980 ± 0.000"]
+    assert row[1:] == [
+        "pose",
+        "2",
+        "0-1",
+        "95.0 ± 7.1",
+        "70.0 ± 14.1",
+        f"67.0 ± {spread}",
+        "0.980 ± 0.000",
+    ]
     assert "mean-class" not in single.split("|", 1)[1]
 
 
@@ -205,6 +221,30 @@ def test_ablation_sweep_gets_a_settings_table(tmp_path: Path) -> None:
     assert "No default-config multi-material runs." in page
 
 
+def test_runs_with_other_oracles_get_their_own_row_and_a_perception_table(
+    tmp_path: Path,
+) -> None:
+    sweep = tmp_path / "perception"
+    for k, (oracles, value) in enumerate(((["object_pose"], 90.0), ([], 80.0))):
+        metrics = run_metrics(value, 95.0, 50.0, 54.0, "plastic", oracles=oracles)
+        metrics["perception"] = {"camera_mask_iou": 0.9 + 0.01 * k, "tactile_depth_mae_mm": 0.2}
+        write_job(sweep, str(k), ["object=patched_toy", "seed=0"], metrics)
+    page = generate(tmp_path, sweep)
+    multi = section(page, "Multi-material objects")
+    rows = {tuple(r[:2]): r for r in table_rows(multi)}
+    assert rows[("`patched_toy`", "pose")][4] == "**90.0 ± 0.0**"
+    assert rows[("`patched_toy`", "none")][4] == "**80.0 ± 0.0**"
+    perception = section(page, "Perception against the simulator's ground truth")
+    rows = {tuple(r[:2]): r for r in table_rows(perception)}
+    assert rows[("`patched_toy`", "none")][2:] == [
+        "1",
+        "0.910 ± 0.000",
+        "n/a",
+        "n/a",
+        "0.200 ± 0.000",
+    ]
+
+
 def test_single_run_oracles_come_from_its_config(tmp_path: Path) -> None:
     run = tmp_path / "outputs" / "map" / "plushie"
     (run / ".hydra").mkdir(parents=True)
@@ -216,7 +256,7 @@ def test_single_run_oracles_come_from_its_config(tmp_path: Path) -> None:
     metrics["config"] = {"object": "plushie", "seed": 0}
     (run / "metrics.json").write_text(json.dumps(metrics))
     page = generate(tmp_path, run)
-    assert cells(section(page, "Multi-material objects"), "`plushie`")[1:4] == [
+    assert cells(section(page, "Multi-material objects"), "`plushie`")[2:5] == [
         "0",
         "70.0",
         "**70.0 ± 0.0**",
