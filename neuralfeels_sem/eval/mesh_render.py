@@ -56,7 +56,7 @@ class DepthRenderer:
 
         # Shared with the sim renderers: its close() keeps the process-wide EGL display alive
         # (pyrender's own delete() would terminate it under every other renderer).
-        from neuralfeels_sem.sim.pyrender_utils import LazyOffscreen, intrinsics_camera
+        from neuralfeels_sem.utils.offscreen import LazyOffscreen, intrinsics_camera
 
         self._center = self.mesh.bounds.mean(axis=0)
         self._radius = float(np.linalg.norm(self.mesh.vertices - self._center, axis=1).max())

@@ -25,12 +25,8 @@ import trimesh
 from neuralfeels_sem.core.frame import CameraReading
 from neuralfeels_sem.core.geometry import Intrinsics, check_pose, look_at
 from neuralfeels_sem.objects.material_object import IGNORE, MaterialObject
-from neuralfeels_sem.sim.pyrender_utils import (
-    LazyOffscreen,
-    intrinsics_camera,
-    opengl_camera_pose,
-    split_by_material,
-)
+from neuralfeels_sem.sim.pyrender_utils import split_by_material
+from neuralfeels_sem.utils.offscreen import LazyOffscreen, intrinsics_camera, opengl_camera_pose
 
 # RGB 0..1 per material name; unknown names get a stable colour from their name.
 MATERIAL_PALETTE: dict[str, tuple[float, float, float]] = {

@@ -45,15 +45,9 @@ from neuralfeels_sem.sim.gel_optics import (
     object_points,
     texture_relief,
 )
-from neuralfeels_sem.sim.pyrender_utils import (
-    LazyOffscreen,
-    decode_seg,
-    intrinsics_camera,
-    opengl_camera_pose,
-    seg_colour,
-    split_by_material,
-)
+from neuralfeels_sem.sim.pyrender_utils import decode_seg, seg_colour, split_by_material
 from neuralfeels_sem.sim.textures import MicroTexture, compliance_for, specular_for, texture_for
+from neuralfeels_sem.utils.offscreen import LazyOffscreen, intrinsics_camera, opengl_camera_pose
 
 _NOISE_FRAMES, _NOISE_PAD = 8, 64  # noise bank: frames, extra rows/columns for random windows
 
