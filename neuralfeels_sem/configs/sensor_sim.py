@@ -1,4 +1,4 @@
-"""Schemas for sensor=sim (the simulated rig) and task=collect_tactile."""
+"""Schemas for sensor=sim (the simulated rig) and task=collect_tactile (sim or real DIGITs)."""
 
 from __future__ import annotations
 
@@ -7,6 +7,7 @@ from dataclasses import dataclass, field
 from neuralfeels_sem.configs.object import TACTILE_DATA_OBJECTS
 from neuralfeels_sem.core.digit import MAX_PENETRATION_M
 from neuralfeels_sem.core.hand import FINGERS
+from neuralfeels_sem.sim.depth_noise import DEPTH_NOISE_MODELS, RealSenseNoiseConfig
 
 
 def _check_firmness(name: str, firmness: dict[str, float]) -> None:
@@ -34,21 +35,36 @@ class SimTactileConfig:
 
 @dataclass
 class SimRgbdConfig:
-    """The front-left RGB-D camera (sim/camera_renderer.py)."""
+    """The front-left RGB-D camera (sim/camera_renderer.py) and the lab it sees (sim/lab_scenery.py)."""
 
     width: int = 320
     height: int = 240
     fov_y_deg: float = 50.0
-    depth_noise_std: float = 0.0  # metres
+    depth_noise: str = "none"  # none (exact depth: an oracle) | realsense (sim/depth_noise.py)
+    realsense: RealSenseNoiseConfig = field(default_factory=RealSenseNoiseConfig)
     distance: float = 0.35  # from the grasp centre
+    table_height: float | None = (
+        0.0  # world z of the table top (the palm is 15 cm above); null: none
+    )
+    backdrop_distance: float | None = 0.8  # wall, metres from the camera (level); null: none
+    mount: bool = True  # the wrist and arm end behind the palm
 
     def __post_init__(self) -> None:
         if self.width < 16 or self.height < 16:
             raise ValueError(f"sensor.rgbd: {self.width}x{self.height} must be at least 16x16")
         if not 1.0 < self.fov_y_deg < 170.0:
             raise ValueError(f"sensor.rgbd.fov_y_deg={self.fov_y_deg} must be in (1, 170)")
-        if self.depth_noise_std < 0 or self.distance <= 0:
-            raise ValueError("sensor.rgbd: depth_noise_std must be >= 0 and distance > 0")
+        if self.depth_noise not in DEPTH_NOISE_MODELS:
+            raise ValueError(
+                f"sensor.rgbd.depth_noise={self.depth_noise!r}: use one of {', '.join(DEPTH_NOISE_MODELS)}"
+            )
+        if self.distance <= 0:
+            raise ValueError(f"sensor.rgbd.distance={self.distance} must be > 0")
+        if self.backdrop_distance is not None and self.backdrop_distance <= self.distance:
+            raise ValueError(
+                f"sensor.rgbd.backdrop_distance={self.backdrop_distance} must exceed distance "
+                f"({self.distance}) to stand behind the hand, or be null (no backdrop)"
+            )
 
 
 @dataclass
@@ -142,8 +158,22 @@ class CollectTactileTaskConfig:
     overwrite: bool = False  # false: refuse to write into a non-empty root
     seed: int = 0  # the yaml sets ${seed}
     tactile: SimTactileConfig = field(default_factory=SimTactileConfig)
+    # sensor=real (sensors/real/tactile_recording.py): the pressed object's material (one
+    # of materials), new images per DIGIT, an optional time limit, and how much a contact
+    # frame must differ from the last one kept (mean absolute difference in grey levels at
+    # quarter size; two different real grasps differ by about 8.6, a held press by < 1).
+    material: str | None = None
+    max_images: int = 200
+    duration_s: float | None = None  # null: stop at max_images (or Ctrl+C)
+    min_change: float = 3.0
 
     def __post_init__(self) -> None:
+        if self.max_images < 1:
+            raise ValueError(f"task.max_images={self.max_images} must be >= 1")
+        if self.duration_s is not None and self.duration_s <= 0:
+            raise ValueError(f"task.duration_s={self.duration_s} must be > 0 or null")
+        if self.min_change < 0:
+            raise ValueError(f"task.min_change={self.min_change} must be >= 0 (0 keeps duplicates)")
         if self.samples_per_class_per_sensor < 1:
             raise ValueError(
                 f"task.samples_per_class_per_sensor={self.samples_per_class_per_sensor} must be >= 1"

@@ -13,7 +13,7 @@ ORACLES = {
     "object_pose": "ground-truth object pose (mapping.pose=gt)",
     "camera_mask": "the simulator's camera object mask (mapping.mapper.use_camera_mask=true)",
     "tactile_contact_depth": "the simulator's tactile contact depth (mapping.mapper.tactile_depth.source=gt)",
-    "noise_free_depth": "noise-free camera depth (sensor.rgbd.depth_noise_std=0)",
+    "noise_free_depth": "noise-free camera depth (sensor.rgbd.depth_noise=none)",
     "material_labels": "ground-truth material labels (classifier=oracle)",
 }
 
@@ -25,10 +25,7 @@ def oracles_used(config: Mapping) -> list[str]:
         return []
     mapping = config.get("mapping") or {}
     mapper = mapping.get("mapper") or {}
-    try:
-        noise_free = float((sensor.get("rgbd") or {}).get("depth_noise_std", 0.0)) == 0.0
-    except (TypeError, ValueError):  # an unresolved interpolation in a saved config
-        noise_free = False
+    noise_free = (sensor.get("rgbd") or {}).get("depth_noise", "none") == "none"
     classifier = str((config.get("classifier") or {}).get("_target_", ""))
     used = {
         "object_pose": mapping.get("pose") == "gt",

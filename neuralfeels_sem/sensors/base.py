@@ -28,6 +28,15 @@ class Sensor(ABC):
     def frames(self) -> Iterator[Frame]:
         """Yield frames until the configured duration or the end of the data."""
 
+    def hand_model(self) -> object | None:
+        """The hand's kinematic model for camera segmentation, or None when unknown.
+
+        An object with `world_T_palm` (4x4), `joint_limits` (J, 2) and `link_meshes(q)`
+        -> [(trimesh, world_T_mesh)] (perception/camera_segmentation.py HandModel); a model
+        without `link_meshes` (no meshes) lets segmentation skip the hand step.
+        """
+        return None
+
     def __len__(self) -> int:
         """Number of frames this sensor will yield (for progress bars); -1 if unknown."""
         return -1

@@ -7,9 +7,10 @@ ambient). On a software-GL CPU this is about 2.5x cheaper than pyrender's PBR co
 pass, and the segmentation pass has no multisampling, so depth is exact at pixel
 centres (the multisampled colour pass's depth is off by a sub-pixel sample offset).
 
-Depth: metres along the OpenCV +z axis, 0 where nothing was rendered; optional Gaussian
-depth noise on valid pixels. Mask: pixels where the object is the visible surface
-(occluders such as finger links and the table hide it).
+Depth: metres along the OpenCV +z axis, 0 where nothing was rendered; optional
+RealSense-like depth noise (sim/depth_noise.py). Mask: pixels where the object is the
+visible surface (occluders such as finger links, and the lab scenery: table, backdrop,
+the hand's mount, hide it and are never in it).
 """
 
 from __future__ import annotations
@@ -17,7 +18,6 @@ from __future__ import annotations
 import zlib
 from collections.abc import Sequence
 
-import cv2
 import numpy as np
 import pyrender
 import trimesh
@@ -25,6 +25,11 @@ import trimesh
 from neuralfeels_sem.core.frame import CameraReading
 from neuralfeels_sem.core.geometry import Intrinsics, check_pose, look_at
 from neuralfeels_sem.objects.material_object import IGNORE, MaterialObject
+from neuralfeels_sem.sim.depth_noise import (
+    DEPTH_NOISE_MODELS,
+    RealSenseDepthNoise,
+    RealSenseNoiseConfig,
+)
 from neuralfeels_sem.sim.pyrender_utils import split_by_material
 from neuralfeels_sem.utils.offscreen import LazyOffscreen, intrinsics_camera, opengl_camera_pose
 
@@ -85,9 +90,12 @@ class CameraRenderer:
         width, height: image size in pixels.
         fov_y_deg: vertical field of view.
         world_T_camera: OpenCV camera pose; default: `front_left_camera_pose` of the origin.
-        depth_noise_std: Gaussian depth noise (metres) on valid pixels; 0 = exact depth.
+        depth_noise: "none" (exact depth) or "realsense" (sim/depth_noise.py).
+        realsense: RealSenseNoiseConfig keyword arguments (with depth_noise="realsense").
         seed: depth-noise seed.
         table_height: world z of a table top to render under the object; None = no table.
+        scenery: static (mesh, world_T_mesh) seen behind the object (backdrop, mount);
+            coloured and coded like the table, never part of the mask.
         name: camera name stored in each CameraReading.
     """
 
@@ -98,21 +106,27 @@ class CameraRenderer:
         height: int = 240,
         fov_y_deg: float = 50.0,
         world_T_camera: np.ndarray | None = None,
-        depth_noise_std: float = 0.0,
+        depth_noise: str = "none",
+        realsense: dict | None = None,
         seed: int = 0,
         table_height: float | None = None,
+        scenery: Sequence[tuple[trimesh.Trimesh, np.ndarray]] = (),
         name: str = "front_left",
     ) -> None:
-        if width < 1 or height < 1 or not 0 < fov_y_deg < 180 or depth_noise_std < 0:
+        if width < 1 or height < 1 or not 0 < fov_y_deg < 180:
             raise ValueError(
-                f"need width, height >= 1, 0 < fov_y_deg < 180, depth_noise_std >= 0; got "
-                f"{width}, {height}, {fov_y_deg}, {depth_noise_std}"
+                f"need width, height >= 1, 0 < fov_y_deg < 180; got {width}, {height}, {fov_y_deg}"
             )
+        if depth_noise not in DEPTH_NOISE_MODELS:
+            raise ValueError(f"depth_noise={depth_noise!r}: use one of {DEPTH_NOISE_MODELS}")
         self.obj = obj
         self.name = name
         self.intrinsics = Intrinsics.from_fov(width, height, fov_y_deg)
-        self.depth_noise_std = float(depth_noise_std)
-        self._rng = np.random.default_rng(seed)
+        self.depth_noise = (
+            RealSenseDepthNoise(RealSenseNoiseConfig(**(realsense or {})), self.intrinsics, seed)
+            if depth_noise == "realsense"
+            else None
+        )
         # Colour per segmentation code: nothing, table, occluder, then one per object label.
         palette = [(0.0, 0.0, 0.0), TABLE_COLOUR, OCCLUDER_COLOUR]
         if len(obj.class_names) + _FIRST_OBJECT + 1 > 256:
@@ -138,6 +152,10 @@ class CameraRenderer:
             pose[2, 3] = table_height - 0.01
             self._table_node = self._scene.add(pyrender.Mesh.from_trimesh(table), pose=pose)
             self._seg_map[self._table_node] = _TABLE
+        for mesh, world_T_mesh in scenery:
+            check_pose(world_T_mesh, "scenery pose")
+            node = self._scene.add(pyrender.Mesh.from_trimesh(mesh), pose=world_T_mesh)
+            self._seg_map[node] = _TABLE
         self._occluder_nodes: dict[int, tuple[trimesh.Trimesh, pyrender.Node]] = {}
 
         self._camera_node = self._scene.add(
@@ -202,12 +220,8 @@ class CameraRenderer:
         code = seg[..., 0]
         depth = depth.astype(np.float32, copy=True)
         rgb = self._shade(depth, code)
-        if self.depth_noise_std > 0:
-            valid = depth > 0
-            cv2.setRNGSeed(int(self._rng.integers(2**31 - 1)))
-            noise = np.empty_like(depth)
-            cv2.randn(noise, 0.0, self.depth_noise_std)
-            depth[valid] = np.maximum(depth[valid] + noise[valid], 1e-4)
+        if self.depth_noise is not None:
+            depth = self.depth_noise(depth)
         return CameraReading(
             rgb=rgb,
             depth=depth,

@@ -16,7 +16,7 @@ from tests.viz.test_sweep_plots import write_job
 
 SIM_CONFIG = {
     "seed": 0,
-    "sensor": {"name": "sim", "rgbd": {"depth_noise_std": 0.0}},
+    "sensor": {"name": "sim", "rgbd": {"depth_noise": "none"}},
     "object": {"name": "plushie"},
     "classifier": {"_target_": "neuralfeels_sem.perception.classifier.MaterialClassifier"},
     "mapping": {

@@ -131,25 +131,38 @@ def test_table_is_seen_but_not_masked() -> None:
     renderer.close()
 
 
-def test_depth_noise_has_the_requested_std() -> None:
-    clean = CameraRenderer(_object(), world_T_camera=front_left_camera_pose(TARGET, distance=0.25))
-    noisy = CameraRenderer(
-        _object(),
-        world_T_camera=front_left_camera_pose(TARGET, distance=0.25),
-        depth_noise_std=0.002,
-        seed=3,
-    )
+def test_realsense_noise_drops_edges_and_keeps_the_mask() -> None:
+    pose = front_left_camera_pose(TARGET, distance=0.25)
+    clean = CameraRenderer(_object(), world_T_camera=pose)
+    noisy = CameraRenderer(_object(), world_T_camera=pose, depth_noise="realsense", seed=3)
     a, b = clean.render(_pose()), noisy.render(_pose())
-    valid = a.depth > 0
-    np.testing.assert_array_equal(valid, b.depth > 0)  # background stays invalid (0)
-    assert (b.depth[valid] - a.depth[valid]).std() == pytest.approx(0.002, rel=0.1)
+    np.testing.assert_array_equal(a.mask, b.mask)  # the mask is what is seen, noise or not
+    assert not ((b.depth > 0) & (a.depth == 0)).any()  # noise never invents a surface
+    kept = (a.depth > 0) & (b.depth > 0)
+    assert 0 < (b.depth[kept] - a.depth[kept]).std() < 0.002
+    assert (b.depth > 0).sum() < (a.depth > 0).sum()  # the outline lost its pixels
     clean.close()
     noisy.close()
+
+
+def test_scenery_is_seen_but_not_masked() -> None:
+    from neuralfeels_sem.sim.lab_scenery import backdrop
+
+    pose = front_left_camera_pose(TARGET, distance=0.25)
+    plain = CameraRenderer(_object(), world_T_camera=pose)
+    walled = CameraRenderer(_object(), world_T_camera=pose, scenery=[backdrop(pose, 0.6)])
+    a, b = plain.render(_pose()), walled.render(_pose())
+    np.testing.assert_array_equal(a.mask, b.mask)
+    assert (b.depth > 0).mean() > 0.9 > (a.depth > 0).mean()
+    plain.close()
+    walled.close()
 
 
 def test_bad_arguments_raise() -> None:
     with pytest.raises(ValueError):
         CameraRenderer(_object(), fov_y_deg=0.0)
+    with pytest.raises(ValueError, match="depth_noise"):
+        CameraRenderer(_object(), depth_noise="kinect")
     renderer = CameraRenderer(_object())
     with pytest.raises(ValueError):
         renderer.render(np.eye(3))

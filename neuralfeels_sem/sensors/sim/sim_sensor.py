@@ -40,7 +40,8 @@ class SimSensor(Sensor):
         gait_period_s, contact_fraction: finger gaiting cycle.
         firmness_mm: press depth per finger (thumb weaker by default, as in the paper).
         tactile: DigitRenderer options (background, noise_std, texture_scale, ...).
-        rgbd: camera options (width, height, fov_y_deg, depth_noise_std, distance).
+        rgbd: camera options (width, height, fov_y_deg, depth_noise, realsense, distance)
+            and the lab scenery (table_height, backdrop_distance, mount).
     """
 
     def __init__(
@@ -99,7 +100,6 @@ class SimSensor(Sensor):
     def open(self) -> None:
         if self.rig is not None:
             return
-        from neuralfeels_sem.sim.camera_renderer import CameraRenderer
         from neuralfeels_sem.sim.rig import SimRig
         from neuralfeels_sem.sim.tactile_renderer import DigitRenderer
 
@@ -131,16 +131,32 @@ class SimSensor(Sensor):
             for f in self.fingers
         }
         if self.camera_enabled:
-            options = dict(self.rgbd_options)
-            distance = float(options.pop("distance", 0.35))
-            from neuralfeels_sem.sim.camera_renderer import front_left_camera_pose
+            self.camera_renderer = self._camera_renderer()
 
-            self.camera_renderer = CameraRenderer(
-                self.obj,
-                world_T_camera=front_left_camera_pose(self.rig.centre, distance),
-                seed=self.seed,
-                **options,
-            )
+    def _camera_renderer(self):
+        """The RGB-D camera at `distance` from the grasp centre, with the lab scenery around."""
+        from neuralfeels_sem.sim.camera_renderer import CameraRenderer, front_left_camera_pose
+        from neuralfeels_sem.sim.lab_scenery import backdrop, hand_mount
+
+        options = dict(self.rgbd_options)
+        distance = float(options.pop("distance", 0.35))
+        backdrop_distance = options.pop("backdrop_distance", None)
+        mount = bool(options.pop("mount", False))
+        world_T_camera = front_left_camera_pose(self.rig.centre, distance)
+        scenery = [] if backdrop_distance is None else [backdrop(world_T_camera, backdrop_distance)]
+        if mount:
+            scenery.append(hand_mount(self.rig.scene.world_T_palm))
+        return CameraRenderer(
+            self.obj, world_T_camera=world_T_camera, seed=self.seed, scenery=scenery, **options
+        )
+
+    def hand_model(self):
+        """The hand's kinematics at the rig's palm pose (a scene-free model, not the MuJoCo
+        scene's own geoms): what a rig knows of its hand from its description."""
+        from neuralfeels_sem.sim.kinematics import HandKinematics
+
+        self.open()
+        return HandKinematics(self.rig.scene.world_T_palm)
 
     def close(self) -> None:
         for renderer in self.renderers.values():
