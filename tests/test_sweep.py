@@ -12,7 +12,11 @@ from tests.helpers import run_cli
 TINY_JOB = ["task=info"]
 
 
-@pytest.mark.parametrize("launcher", ["local", "submitit_local"])
+# submitit_local starts a process per job (about 30 s on 2 cores): a `slow` case; the
+# default run keeps the basic launcher, which shares the sweep and aggregation code.
+@pytest.mark.parametrize(
+    "launcher", ["local", pytest.param("submitit_local", marks=pytest.mark.slow)]
+)
 def test_multirun_two_jobs_and_aggregate(tmp_path: Path, launcher: str) -> None:
     sweep_dir = tmp_path / "sweep"
     result = run_cli(
