@@ -84,8 +84,15 @@ class TrainClassifierTaskConfig(TaskConfig):
     export_fp16: bool = False  # store classifier.pt in half precision (the shipped asset)
     lr_schedule: str = "constant"  # constant (the paper) | cosine: decay to min_lr_ratio * lr
     min_lr_ratio: float = 0.01
+    # Fine-tuning: null trains a new model; `shipped` (assets/classifier/) or a classifier.pt
+    # (or its run directory) is trained further, at its own input size and crop.
+    init_from: str | None = None
+    # Share of dataset.root images in each training epoch when dataset.sim_root is mixed in.
+    real_ratio: float = 0.5
 
     def __post_init__(self) -> None:
+        if not 0.0 < self.real_ratio <= 1.0:
+            raise ValueError(f"task.real_ratio={self.real_ratio} must be in (0, 1]")
         if self.lr_schedule not in ("constant", "cosine"):
             raise ValueError(f"task.lr_schedule={self.lr_schedule!r} must be constant or cosine")
         if not 0.0 <= self.min_lr_ratio <= 1.0:

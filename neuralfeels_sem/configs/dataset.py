@@ -12,6 +12,9 @@ class TactileDatasetConfig:
     root: str = "data/tactile/sim"
     extensions: list[str] = field(default_factory=lambda: [".png", ".jpg", ".jpeg"])
     max_per_group: int | None = None  # cap images per (sensor, class), e.g. for a quick CPU run
+    # task=train_classifier: a second set (e.g. simulated) mixed into training by
+    # task.real_ratio; validation and test stay on root. null: root alone.
+    sim_root: str | None = None
 
     def __post_init__(self) -> None:
         if not self.root:

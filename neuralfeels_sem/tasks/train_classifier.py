@@ -1,6 +1,7 @@
 """task=train_classifier: train the tactile material classifier on a folder of DIGIT images.
 
     python run.py task=train_classifier dataset.root=PATH [classifier.input_size=224]
+    python run.py task=train_classifier dataset.root=REAL task.init_from=shipped dataset.sim_root=SIM
 
 Writes into the run directory: classifier.pt (weights, class names, input size,
 normalisation), report.json (test_accuracy, val_accuracy, per_sensor, confusion, ...),
@@ -47,6 +48,8 @@ def run(cfg: DictConfig) -> dict:
         extensions=tuple(data.extensions),
         max_per_group=data.max_per_group,
         split=tuple(task.split),
+        sim_root=data.sim_root,
+        real_ratio=task.real_ratio,
     )
     return train_classifier(
         classifier,
@@ -56,4 +59,5 @@ def run(cfg: DictConfig) -> dict:
         device_name=cfg.classifier.device,
         resume=task.resume,
         export_fp16=task.export_fp16,
+        init_from=task.init_from,
     )

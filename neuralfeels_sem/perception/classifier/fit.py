@@ -25,6 +25,7 @@ from tqdm import tqdm
 
 from neuralfeels_sem.core.errors import DataError
 from neuralfeels_sem.perception.classifier.checkpoint import save_checkpoint
+from neuralfeels_sem.perception.classifier.finetune import MixedDraw
 from neuralfeels_sem.perception.classifier.predict import predict_probs
 from neuralfeels_sem.perception.classifier.transforms import augment, normalize, to_tensor
 
@@ -89,11 +90,14 @@ def fit(
     device: torch.device,
     resume_from: Path | None = None,
     checkpoint_meta: dict | None = None,
+    draw: MixedDraw | None = None,
 ) -> TrainResult:
     """Train in place; the best model (by validation accuracy) ends up in run_dir/best.pt.
 
     `checkpoint_meta` goes into every saved checkpoint's meta (e.g. `crop_px`, which
     inference needs to preprocess as training did, so best.pt is usable on its own).
+    `draw` orders each epoch over train_images = [real; extra] (finetune.py); None: each
+    image once per epoch, shuffled.
     """
     if len(train_images) < 2 or len(val_images) < 1:
         raise DataError(
@@ -106,7 +110,17 @@ def fit(
     resumed_from = state["epoch"]
     meta = {**(checkpoint_meta or {}), "settings": asdict(settings)}
     loop = _Loop(
-        model, optimizer, generator, settings, device, class_names, input_size, mean, std, meta
+        model,
+        optimizer,
+        generator,
+        settings,
+        device,
+        class_names,
+        input_size,
+        mean,
+        std,
+        meta,
+        draw,
     )
     stopped = state["since_best"] >= settings.patience
     epochs = tqdm(
@@ -183,14 +197,20 @@ class _Loop:
     mean: list[float]
     std: list[float]
     meta: dict  # goes into every saved checkpoint's meta
+    draw: MixedDraw | None = None
+
+    def epoch_order(self, n: int) -> np.ndarray:
+        """The indices of one epoch's training images, in the order they are trained on."""
+        if self.draw is None:
+            return torch.randperm(n, generator=self.generator).numpy()
+        return self.draw(self.generator)
 
     def train_epoch(self, epoch: int, images: np.ndarray, labels: np.ndarray) -> dict:
         """One pass over the shuffled training set; its loss and accuracy."""
         settings, model, optimizer = self.settings, self.model, self.optimizer
-        n = len(images)
-        steps = (n + settings.batch_size - 1) // settings.batch_size
         model.train()
-        order = torch.randperm(n, generator=self.generator).numpy()
+        order = self.epoch_order(len(images))
+        steps = (len(order) + settings.batch_size - 1) // settings.batch_size
         loss_sum, correct, seen = 0.0, 0, 0
         bar = tqdm(
             range(steps), desc=f"epoch {epoch + 1}/{settings.max_epochs}", unit="batch", leave=False
@@ -222,11 +242,15 @@ class _Loop:
             correct += int((logits.argmax(1) == y).sum())
             seen += len(idx)
             bar.set_postfix(loss=f"{loss_sum / seen:.3f}", acc=f"{correct / seen:.3f}")
-        return {
+        record = {
             "epoch": epoch + 1,
             "train_loss": loss_sum / max(seen, 1),
             "train_accuracy": correct / max(seen, 1),
         }
+        if self.draw is not None:  # what the epoch actually drew, to check the mix
+            record["real_drawn"] = int((order < self.draw.primary).sum())
+            record["extra_drawn"] = int((order >= self.draw.primary).sum())
+        return record
 
     def validate(
         self,
@@ -240,8 +264,10 @@ class _Loop:
     ) -> None:
         """Score the epoch on the validation set, keep the best model, write last.pt."""
         model, settings = self.model, self.settings
+        # Statistics of the images the model is validated and used on: the real ones.
+        calibration = train_images if self.draw is None else train_images[: self.draw.primary]
         recalibrate_batchnorm(
-            model, train_images, self.mean, self.std, self.device, settings.batch_size
+            model, calibration, self.mean, self.std, self.device, settings.batch_size
         )
         val_pred = predict_probs(model, val_images, self.mean, self.std, self.device).argmax(1)
         val_acc = float((val_pred == val_labels).mean())

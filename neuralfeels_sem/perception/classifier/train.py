@@ -2,7 +2,9 @@
 
 Scans `<root>/<sensor>/<material>/<id>.png`, caps and splits it (stratified by sensor and
 class), trains with `fit.fit` (resumable from last.pt), scores the best epoch on the
-validation and test sets and exports it. Writes into `run_dir`: classifier.pt (weights,
+validation and test sets and exports it. Fine-tuning (finetune.py) starts from a trained
+checkpoint instead of a new model and may mix a second set (`sim_root`, all of it used for
+training only) into every epoch by `real_ratio`; validation and test stay on `root`. Writes into `run_dir`: classifier.pt (weights,
 class names, input size, normalisation), report.json (test_accuracy, val_accuracy,
 per_sensor, confusion, ...), confusion.png, per_sensor.png, split.json (which file went
 where), history.json, best.pt and last.pt.
@@ -20,7 +22,11 @@ import numpy as np
 import torch
 
 from neuralfeels_sem.core.errors import ConfigError, DataError
-from neuralfeels_sem.perception.classifier.checkpoint import load_checkpoint, save_checkpoint
+from neuralfeels_sem.perception.classifier.checkpoint import (
+    ClassifierCheckpoint,
+    load_checkpoint,
+    save_checkpoint,
+)
 from neuralfeels_sem.perception.classifier.dataset import (
     LoadedSet,
     Sample,
@@ -39,6 +45,7 @@ from neuralfeels_sem.perception.classifier.evaluate import (
     test_report,
     write_report,
 )
+from neuralfeels_sem.perception.classifier.finetune import MixedDraw, initial_checkpoint
 from neuralfeels_sem.perception.classifier.fit import BEST, LAST, TrainResult, TrainSettings, fit
 from neuralfeels_sem.perception.classifier.infer import MaterialClassifier
 from neuralfeels_sem.perception.classifier.predict import predict_probs
@@ -56,6 +63,8 @@ class DataSettings:
     extensions: tuple[str, ...]
     max_per_group: int | None = None
     split: tuple[float, float, float] = (0.7, 0.15, 0.15)  # train, val, test
+    sim_root: str | None = None  # a second set mixed into training (finetune.MixedDraw)
+    real_ratio: float = 0.5  # share of `root` images in each epoch when sim_root is set
 
 
 def cap_per_group(samples: list[Sample], max_per_group: int | None, seed: int) -> list[Sample]:
@@ -97,18 +106,27 @@ def train_classifier(
     device_name: str = "auto",
     resume: str = "auto",
     export_fp16: bool = False,
+    init_from: str | None = None,
 ) -> dict:
-    """Train `classifier`'s model on `data` (seeded by settings.seed); returns the report."""
+    """Train `classifier`'s model on `data` (seeded by settings.seed); returns the report.
+
+    `init_from` (`shipped` or a classifier.pt) fine-tunes that model, at its input size
+    and crop, instead of training a new one.
+    """
     class_names = list(classifier.class_names)
-    size, crop_px = classifier.input_size, classifier.crop_px
+    init = initial_checkpoint(init_from, class_names) if init_from else None
+    size, crop_px = _input_of(classifier, init)
     loaded, parts = _load_and_split(data, class_names, size, crop_px, settings.seed, run_dir)
+    train_x, train_y, draw, mix = _training_set(
+        loaded, parts["train"], data, class_names, size, crop_px, settings.seed
+    )
     device = _device(device_name)
     mean, std = list(IMAGENET_MEAN), list(IMAGENET_STD)
-    tr, va = parts["train"], parts["val"]
+    va = parts["val"]
     result = fit(
-        classifier.new_model(),
-        loaded.images[tr],
-        loaded.labels[tr],
+        init.build(device) if init is not None else classifier.new_model(),
+        train_x,
+        train_y,
         loaded.images[va],
         loaded.labels[va],
         settings,
@@ -120,6 +138,7 @@ def train_classifier(
         device,
         resume_path(resume, run_dir),
         checkpoint_meta={"crop_px": crop_px},
+        draw=draw,
     )
     model = load_checkpoint(run_dir / BEST).build(device)
 
@@ -133,6 +152,8 @@ def train_classifier(
         "crop_px": crop_px,
         "device": str(device),
         "weights": classifier.weights,
+        "init_from": init_from,
+        "mix": mix,
         **_outcome(result),
     }
     meta = {
@@ -165,8 +186,12 @@ def _load_and_split(
     data: DataSettings, class_names: list[str], size: int, crop_px: int, seed: int, run_dir: Path
 ) -> tuple[LoadedSet, dict[str, np.ndarray]]:
     """Scan, cap, load and split the images; writes split.json."""
+    # A mixed-in set may supply the classes not recorded on one's own sensors.
     samples = scan_dataset(
-        data.root, class_names, require_all_classes=True, extensions=tuple(data.extensions)
+        data.root,
+        class_names,
+        require_all_classes=data.sim_root is None,
+        extensions=tuple(data.extensions),
     )
     samples = cap_per_group(samples, data.max_per_group, seed)
     loaded = load_samples(
@@ -195,6 +220,58 @@ def _load_and_split(
         )
     )
     return loaded, parts
+
+
+def _input_of(classifier: MaterialClassifier, init: ClassifierCheckpoint | None) -> tuple:
+    """(input size, crop) to train at: the classifier config's, or a fine-tuned model's own."""
+    if init is None:
+        return classifier.input_size, classifier.crop_px
+    if init.input_size != classifier.input_size:
+        log.info(
+            "fine-tuning at the checkpoint's input size %d (classifier.input_size=%d is ignored)",
+            init.input_size,
+            classifier.input_size,
+        )
+    return init.input_size, init.meta.get("crop_px")
+
+
+def _training_set(
+    loaded: LoadedSet,
+    train: np.ndarray,
+    data: DataSettings,
+    class_names: list[str],
+    size: int,
+    crop_px: int | None,
+    seed: int,
+) -> tuple[np.ndarray, np.ndarray, MixedDraw | None, dict | None]:
+    """Training images and labels ([real; sim] when data.sim_root is set), the epoch draw
+    and the report's `mix` entry."""
+    real_x, real_y = loaded.images[train], loaded.labels[train]
+    if data.sim_root is None:
+        return real_x, real_y, None, None
+    samples = scan_dataset(
+        data.sim_root, class_names, require_all_classes=False, extensions=tuple(data.extensions)
+    )
+    samples = cap_per_group(samples, data.max_per_group, seed)
+    backgrounds = load_backgrounds(data.sim_root) if crop_px else None
+    sim = load_samples(samples, size, "loading sim images", crop_px, backgrounds)
+    missing = sorted(set(range(len(class_names))) - set(real_y.tolist()) - set(sim.labels.tolist()))
+    if missing:
+        raise DataError(
+            f"no training image of {[class_names[c] for c in missing]} in dataset.root or "
+            "dataset.sim_root: collect them or set materials to the classes present"
+        )
+    draw = MixedDraw(len(real_y), len(sim.labels), float(data.real_ratio))
+    mix = {
+        "sim_root": str(resolve_path(data.sim_root)),
+        "sim_images": len(sim.labels),
+        "real_train_images": len(real_y),
+        "real_ratio": float(data.real_ratio),
+        "sim_per_epoch": draw.extra_per_epoch,
+    }
+    log.info("mixing %d sim images into %d real ones per epoch", draw.extra_per_epoch, len(real_y))
+    images = np.concatenate([real_x, sim.images])
+    return images, np.concatenate([real_y, sim.labels]), draw, mix
 
 
 def _device(name: str) -> torch.device:
