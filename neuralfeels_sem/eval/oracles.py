@@ -11,7 +11,7 @@ from collections.abc import Mapping
 # What each oracle is (names as metrics.json["oracles"]).
 ORACLES = {
     "object_pose": "ground-truth object pose (mapping.pose=gt)",
-    "camera_mask": "the simulator's camera object mask (mapping.mapper.use_camera_mask=true)",
+    "camera_mask": "the simulator's camera object mask (mapping.mapper.camera_mask=gt)",
     "tactile_contact_depth": "the simulator's tactile contact depth (mapping.mapper.tactile_depth.source=gt)",
     "noise_free_depth": "noise-free camera depth (sensor.rgbd.depth_noise=none)",
     "material_labels": "ground-truth material labels (classifier=oracle)",
@@ -25,11 +25,17 @@ def oracles_used(config: Mapping) -> list[str]:
         return []
     mapping = config.get("mapping") or {}
     mapper = mapping.get("mapper") or {}
-    noise_free = (sensor.get("rgbd") or {}).get("depth_noise", "none") == "none"
+    rgbd = sensor.get("rgbd") or {}
+    # Configs saved before camera_mask / depth_noise replaced use_camera_mask /
+    # depth_noise_std still name their oracles (the results page reads stored runs).
+    legacy_mask = "gt" if mapper.get("use_camera_mask") is True else None
+    camera_mask = mapper.get("camera_mask", legacy_mask)
+    legacy_noise = "none" if rgbd.get("depth_noise_std", 0.0) == 0.0 else "gaussian"
+    noise_free = rgbd.get("depth_noise", legacy_noise) == "none"
     classifier = str((config.get("classifier") or {}).get("_target_", ""))
     used = {
         "object_pose": mapping.get("pose") == "gt",
-        "camera_mask": mapper.get("use_camera_mask") is True,
+        "camera_mask": camera_mask == "gt",
         "tactile_contact_depth": (mapper.get("tactile_depth") or {}).get("source") == "gt",
         "noise_free_depth": noise_free,
         "material_labels": classifier.endswith("OracleClassifier"),

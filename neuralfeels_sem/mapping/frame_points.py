@@ -2,24 +2,85 @@
 
 from __future__ import annotations
 
+import dataclasses
+
 import numpy as np
 
-from neuralfeels_sem.core.frame import Frame
+from neuralfeels_sem.core.digit import GEL_DISTANCE_M
+from neuralfeels_sem.core.frame import CameraReading, Frame
+from neuralfeels_sem.perception.camera_segmentation import CameraSegmenter, SegmentationConfig
 from neuralfeels_sem.perception.pointcloud import camera_points, tactile_points
+from neuralfeels_sem.perception.segmentation_stats import SegmentationStats
 from neuralfeels_sem.perception.tactile_depth import TactileDepth
+
+# mapping.mapper.camera_mask: the simulator's object mask (an oracle), a segmentation from
+# depth and the hand's model, or every valid pixel.
+CAMERA_MASKS = ("gt", "segment", "none")
+
+
+def fingertip_points(frame: Frame) -> np.ndarray:
+    """(K, 3) world centres of the frame's DIGIT gels (where the object is being touched)."""
+    tips = [
+        r.world_T_sensor[:3, :3] @ np.array([0.0, 0.0, GEL_DISTANCE_M]) + r.world_T_sensor[:3, 3]
+        for r in frame.tactile.values()
+    ]
+    return np.asarray(tips, np.float64).reshape(-1, 3)
 
 
 class PointExtractor:
-    """Back-projects a frame's camera depth (inside its mask when `use_camera_mask`) and
-    each finger's contact depth (from `tactile_depth`) into object-frame points."""
+    """Back-projects a frame's camera depth (inside its `camera_mask`) and each finger's
+    contact depth (from `tactile_depth`) into object-frame points.
 
-    def __init__(self, use_camera_mask: bool, tactile_depth: TactileDepth) -> None:
-        self.use_camera_mask = bool(use_camera_mask)
+    With camera_mask="segment" the object mask comes from CameraSegmenter (built on first
+    use from `segmentation` and `hand_model`); `stats` keeps its running figures, and a
+    frame where it finds no object gives no camera points at all.
+    """
+
+    def __init__(
+        self,
+        camera_mask: str,
+        tactile_depth: TactileDepth,
+        segmentation: SegmentationConfig | None = None,
+        hand_model: object | None = None,
+    ) -> None:
+        if camera_mask not in CAMERA_MASKS:
+            raise ValueError(f"camera_mask={camera_mask!r}: use one of {', '.join(CAMERA_MASKS)}")
+        self.camera_mask = camera_mask
         self.tactile_depth = tactile_depth
+        # A plain copy of the settings, checked now: a bad one fails at construction,
+        # not at the first segmented frame.
+        given = segmentation or SegmentationConfig()
+        self.segmentation = SegmentationConfig(
+            **{f.name: getattr(given, f.name) for f in dataclasses.fields(SegmentationConfig)}
+        )
+        self.hand_model = hand_model
+        self.segmenter: CameraSegmenter | None = None
+        self.stats = SegmentationStats()
+        self._last: tuple[int, int, np.ndarray] | None = None  # (frame index, reading id, mask)
 
     def __call__(self, frame: Frame, world_T_object: np.ndarray) -> dict[str, np.ndarray]:
         """Object-frame surface points per source: `camera` and each finger in contact."""
         return self.extract(frame, world_T_object, every_pixel=False)[0]
+
+    def object_mask(self, frame: Frame) -> np.ndarray | None:
+        """The camera's object mask under `camera_mask` (None: every valid pixel).
+
+        A frame is segmented once: pose tracking and ingestion ask for the same frame.
+        """
+        reading = frame.camera
+        if self.camera_mask == "none":
+            return None
+        if self.camera_mask == "gt":
+            return reading.mask
+        key = (frame.index, id(reading))
+        if self._last is not None and self._last[:2] == key:
+            return self._last[2]
+        if self.segmenter is None:
+            self.segmenter = CameraSegmenter(self.segmentation, self.hand_model)
+        result = self.segmenter(reading, frame.joint_positions, fingertip_points(frame))
+        self.stats.add(result, reading.depth, reading.mask)
+        self._last = (*key, result.mask)
+        return result.mask
 
     def extract(
         self, frame: Frame, world_T_object: np.ndarray, every_pixel: bool
@@ -33,22 +94,26 @@ class PointExtractor:
         out: dict[str, np.ndarray] = {}
         every = None
         reading = frame.camera
-        if reading is not None and every_pixel:
-            every = camera_points(reading, world_T_object, use_mask=False)
-            out["camera"] = every
-            if self.use_camera_mask and reading.mask is not None:
-                if reading.mask.shape != reading.depth.shape:
-                    raise ValueError(
-                        f"mask shape {reading.mask.shape} does not match depth shape "
-                        f"{reading.depth.shape}"
-                    )
-                # backproject keeps the finite, positive depths in row-major pixel order.
-                valid = np.isfinite(reading.depth) & (reading.depth > 0)
-                out["camera"] = every[reading.mask.astype(bool)[valid]]
-        elif reading is not None:
-            out["camera"] = camera_points(reading, world_T_object, self.use_camera_mask)
-        for finger, reading in frame.tactile.items():
-            pts = tactile_points(reading, self.tactile_depth(reading), world_T_object)
+        mask = None if reading is None else self.object_mask(frame)
+        if reading is not None and (mask is None or mask.any()):
+            if every_pixel:
+                every = camera_points(reading, world_T_object, use_mask=False)
+                out["camera"] = every if mask is None else every[_valid_mask(reading, mask)]
+            else:
+                masked = dataclasses.replace(reading, mask=mask)
+                out["camera"] = camera_points(masked, world_T_object, mask is not None)
+        for finger, tactile in frame.tactile.items():
+            pts = tactile_points(tactile, self.tactile_depth(tactile), world_T_object)
             if len(pts):
                 out[finger] = pts
         return out, every
+
+
+def _valid_mask(reading: CameraReading, mask: np.ndarray) -> np.ndarray:
+    """`mask` at the valid depth pixels, in backproject's row-major order."""
+    if mask.shape != reading.depth.shape:
+        raise ValueError(
+            f"mask shape {mask.shape} does not match depth shape {reading.depth.shape}"
+        )
+    valid = np.isfinite(reading.depth) & (reading.depth > 0)
+    return mask.astype(bool)[valid]

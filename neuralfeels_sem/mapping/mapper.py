@@ -27,10 +27,11 @@ from neuralfeels_sem.core.frame import Frame
 from neuralfeels_sem.core.materials import DEFAULT_MATERIALS
 from neuralfeels_sem.mapping.batch import BatchSampler, per_keyframe_losses
 from neuralfeels_sem.mapping.bookkeeping import TrainingLog
-from neuralfeels_sem.mapping.frame_points import PointExtractor
+from neuralfeels_sem.mapping.frame_points import CAMERA_MASKS, PointExtractor
 from neuralfeels_sem.mapping.memory import MapMemory
 from neuralfeels_sem.mapping.objective import TERMS, MapperObjective
 from neuralfeels_sem.mapping.rng_state import capture_rng, restore_rng
+from neuralfeels_sem.perception.camera_segmentation import SegmentationConfig
 from neuralfeels_sem.perception.tactile_depth import TactileDepth, TactileDepthConfig
 from neuralfeels_sem.perception.touch import TouchLabel
 
@@ -80,11 +81,19 @@ class MapperConfig:
     window_recent: int = 4  # keyframes: the most recent ones in every window
     window_by_loss: int = 4  # plus older ones drawn by their last loss
     max_keyframes: int = 200
-    use_camera_mask: bool = True  # camera points only inside the object's mask
+    # Camera points inside: gt (the simulator's object mask, an oracle), segment (a
+    # segmentation from depth and the hand's model, perception/camera_segmentation.py) or
+    # none (every valid pixel: hand, table and background too).
+    camera_mask: str = "gt"
+    segmentation: SegmentationConfig = field(default_factory=SegmentationConfig)
     seed: int = 0  # conf: ${seed}
     tactile_depth: TactileDepthConfig = field(default_factory=TactileDepthConfig)
 
     def __post_init__(self) -> None:
+        if self.camera_mask not in CAMERA_MASKS:
+            raise ValueError(
+                f"mapping.mapper.camera_mask={self.camera_mask!r}: use one of {', '.join(CAMERA_MASKS)}"
+            )
         self._check_counts()
         self._check_lengths_and_weights()
         if self.label_vote_support_radius is not None and self.label_vote_support_radius < 0:
@@ -148,6 +157,7 @@ class OnlineMapper:
         field: nn.Module,
         optimizer_factory: Callable[..., torch.optim.Optimizer],
         device: str | torch.device,
+        hand_model: object | None = None,
     ) -> None:
         if getattr(field, "num_classes", config.num_classes) != config.num_classes:
             raise ConfigError(
@@ -161,7 +171,9 @@ class OnlineMapper:
         self.optimizer = optimizer_factory(self.field.parameters())
         # The mapper's own generator: sampling is repeatable and resumable bit for bit.
         self.generator = torch.Generator().manual_seed(int(config.seed))
-        self.points = PointExtractor(config.use_camera_mask, TactileDepth(config.tactile_depth))
+        self.points = PointExtractor(
+            config.camera_mask, TactileDepth(config.tactile_depth), config.segmentation, hand_model
+        )
         self.memory = MapMemory(
             config, field.bound, field.center.detach().cpu().numpy(), self.generator, self.device
         )

@@ -32,12 +32,16 @@ def build_scorer(cfg: DictConfig, obj) -> RunScorer:
     )
 
 
-def build_mapper(cfg: DictConfig, bound: float, device) -> OnlineMapper:
-    """The field (cube half-extent `bound`, from the object) and its online mapper."""
+def build_mapper(cfg: DictConfig, bound: float, device, hand_model=None) -> OnlineMapper:
+    """The field (cube half-extent `bound`, from the object) and its online mapper.
+
+    `hand_model` (Sensor.hand_model()) lets mapping.mapper.camera_mask=segment crop to the
+    palm's workspace and remove the hand from the camera image.
+    """
     field = SemanticField(to_config(SemanticFieldConfig, cfg.model), bound)
     optimizer_factory = instantiate(cfg.mapping.optimizer)  # a partial FieldAdam
     return OnlineMapper(
-        to_config(MapperConfig, cfg.mapping.mapper), field, optimizer_factory, device
+        to_config(MapperConfig, cfg.mapping.mapper), field, optimizer_factory, device, hand_model
     )
 
 

@@ -21,7 +21,7 @@ SIM_CONFIG = {
     "classifier": {"_target_": "neuralfeels_sem.perception.classifier.MaterialClassifier"},
     "mapping": {
         "pose": "gt",
-        "mapper": {"use_camera_mask": True, "tactile_depth": {"source": "gt"}},
+        "mapper": {"camera_mask": "gt", "tactile_depth": {"source": "gt"}},
     },
 }
 

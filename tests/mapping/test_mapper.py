@@ -55,9 +55,9 @@ def test_frame_points_use_the_given_pose() -> None:
     assert np.abs(np.linalg.norm(stored, axis=1) - RADIUS).mean() > 2e-3
 
 
-@pytest.mark.parametrize("use_camera_mask", [True, False])
+@pytest.mark.parametrize("camera_mask", ["gt", "none"])
 def test_one_unmasked_back_projection_gives_the_masked_surface_points(
-    use_camera_mask: bool,
+    camera_mask: str,
 ) -> None:
     """add_frame back-projects the camera once for both the surface and the carving rays."""
     frame, _ = sphere_frames(1, touches_per_frame=0)[0]
@@ -70,13 +70,13 @@ def test_one_unmasked_back_projection_gives_the_masked_surface_points(
     mask = np.zeros(depth.shape, dtype=bool)
     mask[:, : depth.shape[1] // 2] = True
     frame = dataclasses.replace(frame, camera=dataclasses.replace(camera, depth=depth, mask=mask))
-    mapper = make_mapper(space_prior_points=64, use_camera_mask=use_camera_mask)
+    mapper = make_mapper(space_prior_points=64, camera_mask=camera_mask)
     pose = frame.world_T_object
     points, every = mapper.points.extract(frame, pose, every_pixel=True)
     assert np.array_equal(every, camera_points(frame.camera, pose, use_mask=False))
-    assert np.array_equal(points["camera"], camera_points(frame.camera, pose, use_camera_mask))
+    assert np.array_equal(points["camera"], camera_points(frame.camera, pose, camera_mask == "gt"))
     assert np.array_equal(points["camera"], mapper.frame_points(frame, pose)["camera"])
-    if use_camera_mask:
+    if camera_mask == "gt":
         assert 0 < len(points["camera"]) < len(every)
     else:
         assert points["camera"] is every
