@@ -13,6 +13,7 @@ from __future__ import annotations
 
 import importlib
 import pkgutil
+from pathlib import Path
 from typing import Any, TypeVar
 
 from hydra.core.config_store import ConfigStore
@@ -45,6 +46,12 @@ def register_configs() -> None:
     # ${len:${materials}} gives the number of classes to model and classifier configs.
     if not OmegaConf.has_resolver("len"):
         OmegaConf.register_new_resolver("len", lambda value: len(value))
+    # hydra.run.dir: a resumed map run continues in its checkpoint's directory.
+    if not OmegaConf.has_resolver("resume_run_dir"):
+        OmegaConf.register_new_resolver(
+            "resume_run_dir",
+            lambda resume, default: str(Path(resume).parent) if resume else default,
+        )
     cs = ConfigStore.instance()
     for info in pkgutil.iter_modules(__path__):
         module = importlib.import_module(f"{__name__}.{info.name}")

@@ -2,7 +2,8 @@
 
 A checkpoint holds the mapper's full state (field, optimiser, keyframes, touches,
 counters, RNG states), the index of the last frame it has seen, a signature of the
-field (class and parameter shapes) and the caller's `extra` dict of plain values. It is
+field (class and parameter shapes), its provenance (object and its hash, sensor, classes,
+model config: mapping/provenance.py) and the caller's `extra` dict of plain values. It is
 written to `<path>.tmp` and renamed over `path`, so a run killed mid-write keeps its
 previous checkpoint intact; it is read with `torch.load(weights_only=True)`.
 """
@@ -16,12 +17,11 @@ import torch
 
 from neuralfeels_sem.core.errors import ConfigError, DataError
 from neuralfeels_sem.mapping.mapper import OnlineMapper
+from neuralfeels_sem.mapping.provenance import NOT_MODEL_SETTINGS, Provenance
 
-FORMAT_VERSION = 1
-# Keys an older `model` config carried that are not model settings (ignored when comparing,
-# so checkpoints written before they were dropped still resume): Hydra's instantiate keys,
-# and `bound`, declared (0.1) but always replaced by the one computed from the object.
-NOT_MODEL_SETTINGS = ("_target_", "_convert_", "bound")
+# 2 added the provenance; version 1 files still load (task=eval) but cannot be resumed.
+FORMAT_VERSION = 2
+READABLE_VERSIONS = (1, 2)
 
 
 def _settings(model_config: dict) -> dict:
@@ -43,6 +43,7 @@ def save_checkpoint(
     frame_index: int,
     extra: dict | None = None,
     model_config: dict | None = None,
+    provenance: Provenance | None = None,
 ) -> None:
     """Write `path` atomically. `extra` and `model_config` must hold plain values only."""
     path = Path(path)
@@ -51,6 +52,7 @@ def save_checkpoint(
         "frame_index": int(frame_index),
         "signature": field_signature(mapper),
         "model_config": model_config,
+        "provenance": provenance.to_dict() if provenance is not None else None,
         "mapper": mapper.state_dict(),
         "extra": dict(extra or {}),
     }
@@ -63,15 +65,16 @@ def save_checkpoint(
     os.replace(tmp, path)
 
 
-def load_checkpoint(
-    path: str | Path, mapper: OnlineMapper, model_config: dict | None = None
-) -> dict:
-    """Restore `mapper` from `path`; returns {"frame_index": int, "extra": dict}.
+REQUIRED_KEYS = ("version", "frame_index", "signature", "model_config", "mapper", "extra")
 
-    Raises ConfigError when the checkpoint was written for a different model (field class,
-    class count, parameter shapes, or `model_config` when both sides give one).
-    """
+
+def read_checkpoint(path: str | Path) -> dict:
+    """The checkpoint's payload, checked for form; DataError (one line) when it is not one."""
     path = Path(path)
+    if path.is_dir():
+        raise DataError(
+            f"checkpoint {path} is a directory; point mapping.resume at its checkpoint.pt"
+        )
     if not path.is_file():
         raise DataError(f"checkpoint {path} does not exist; check mapping.resume")
     try:
@@ -81,10 +84,44 @@ def load_checkpoint(
         raise DataError(
             f"checkpoint {path} is unreadable ({type(exc).__name__}); point mapping.resume at a good checkpoint.pt"
         ) from exc
-    if not isinstance(payload, dict) or payload.get("version") != FORMAT_VERSION:
+    if not isinstance(payload, dict) or payload.get("version") not in READABLE_VERSIONS:
         raise DataError(
             f"checkpoint {path} is not a SemanticFeels mapper checkpoint (version {FORMAT_VERSION})"
         )
+    missing = [k for k in REQUIRED_KEYS if k not in payload]
+    if missing:
+        raise DataError(
+            f"checkpoint {path} lacks {', '.join(missing)}; it is damaged, point mapping.resume at a good checkpoint.pt"
+        )
+    return payload
+
+
+def read_provenance(path: str | Path) -> Provenance:
+    """The provenance recorded in `path`; ConfigError for a checkpoint that predates it."""
+    payload = read_checkpoint(path)
+    recorded = payload.get("provenance")
+    if not recorded:
+        raise ConfigError(
+            f"checkpoint {path} records no object, sensor or classes (format {payload['version']}); "
+            "it cannot be resumed safely, start a new run"
+        )
+    try:
+        return Provenance.from_dict(recorded)
+    except (KeyError, TypeError, ValueError) as exc:
+        raise DataError(
+            f"checkpoint {path} has a damaged provenance record ({exc}); start a new run"
+        ) from exc
+
+
+def load_checkpoint(
+    path: str | Path, mapper: OnlineMapper, model_config: dict | None = None
+) -> dict:
+    """Restore `mapper` from `path`; returns {"frame_index": int, "extra": dict}.
+
+    Raises ConfigError when the checkpoint was written for a different model (field class,
+    class count, parameter shapes, or `model_config` when both sides give one).
+    """
+    payload = read_checkpoint(path)
     saved, current = payload["signature"], field_signature(mapper)
     if saved != current:
         diff = [k for k in current if saved.get(k) != current[k]]

@@ -5,13 +5,17 @@ pose, add the frame to the mapper (which trains the field); every `every_k_frame
 (and on the last) score the field, every len/`progression_snapshots` frames write a
 progression snapshot, every `checkpoint_every` frames write checkpoint.pt. A run resumed
 from a checkpoint skips the frames it already holds and continues where it stopped, with
-the scorer's curve and the pose source's state restored. At the end: the final checkpoint,
-the final scores and the coloured mesh.
+the scorer's curve, the pose source's state and the earlier segments' frame counts and
+wall times restored. SIGINT or SIGTERM stops the loop after the frame in progress (the
+result is then marked partial). At the end: the final checkpoint, the final scores and
+the coloured mesh. Every file is written atomically.
 """
 
 from __future__ import annotations
 
 import logging
+import shutil
+import signal
 import time
 from dataclasses import dataclass
 from pathlib import Path
@@ -25,7 +29,11 @@ from neuralfeels_sem.eval.run_scorer import RunScorer
 from neuralfeels_sem.mapping.checkpoint import load_checkpoint, save_checkpoint
 from neuralfeels_sem.mapping.mapper import OnlineMapper
 from neuralfeels_sem.mapping.pose_source import PoseSource
+from neuralfeels_sem.mapping.provenance import Provenance
+from neuralfeels_sem.pipeline.interrupts import Interrupted, StopOnSignal
+from neuralfeels_sem.pipeline.segments import Segment, load_segments, run_totals
 from neuralfeels_sem.sensors.base import Sensor
+from neuralfeels_sem.utils.atomic import atomic_write
 
 log = logging.getLogger(__name__)
 
@@ -40,16 +48,6 @@ class SessionSettings:
     progression_snapshots: int
 
 
-@dataclass
-class _Progress:
-    """What the loop saw: frames processed, the last index and the sensor times."""
-
-    processed: int = 0
-    last_index: int = -1
-    first_time: float | None = None
-    last_time: float | None = None
-
-
 class MappingSession:
     """Frames -> classified touches -> pose -> mapper, scored on the way.
 
@@ -61,6 +59,7 @@ class MappingSession:
         out: the run directory (checkpoint.pt, progression/, material_mesh.ply).
         bound: the field's half-extent (for the mesh extraction and the floors).
         model_config: what a checkpoint must match to resume (the composed model config).
+        provenance: the object, sensor, classes and model each checkpoint records.
     """
 
     def __init__(
@@ -73,6 +72,7 @@ class MappingSession:
         bound: float,
         model_config: dict,
         settings: SessionSettings,
+        provenance: Provenance | None = None,
     ) -> None:
         self.mapper = mapper
         self.classifier = classifier
@@ -82,6 +82,11 @@ class MappingSession:
         self.bound = bound
         self.model_config = model_config
         self.settings = settings
+        self.provenance = provenance
+        self.earlier_segments: list[Segment] = []  # of the run this one resumes
+        self.segment = Segment()
+        self.last_index = -1
+        self.stop = StopOnSignal(out)
         self.checkpoint_path = out / "checkpoint.pt"
         self.snapshots_dir = out / "progression"
 
@@ -89,25 +94,27 @@ class MappingSession:
         """Map every frame of the opened `sensor`; returns the scores, frame counts and timing.
 
         `resume`: a checkpoint of an earlier run of the same config to continue from.
+        Frames, wall time and sensor time cover every segment of the run. `partial` is
+        True (and `stopped_by` the signal's name) when SIGINT or SIGTERM stopped it.
         Raises NoDataError when the field received no camera or tactile point.
         """
         self.snapshots_dir.mkdir(exist_ok=True)
         baseline = self._floors()
-        start_index = self._resume(resume) if resume else -1
+        self.last_index = self._resume(resume) if resume else -1
         frame_period = float(getattr(sensor, "frame_period_s", 0.0))
-        wall_start = time.perf_counter()
-        progress = self._loop(sensor, start_index, wall_start)
-        wall_s = time.perf_counter() - wall_start
-        scores = self._finish(progress, baseline)
-        first, last = progress.first_time, progress.last_time
-        sensor_time = (last - first + frame_period) if first is not None else 0.0
+        with self.stop:
+            wall_start = time.perf_counter()
+            self._loop(sensor, wall_start)
+            self.segment.wall_s = time.perf_counter() - wall_start
+            self.segment.partial = self.stop.requested
+            scores = self._finish(baseline)
+        totals = run_totals([*self.earlier_segments, self.segment], frame_period)
         return {
             **scores,
-            "frames": progress.processed,
-            "frames_total": progress.last_index + 1,
-            "wall_s": wall_s,
-            "sensor_time_s": sensor_time,
-            "realtime_factor": sensor_time / wall_s if wall_s > 0 else None,
+            **totals,
+            "frames_total": self.last_index + 1,
+            "partial": self.stop.requested,
+            "stopped_by": signal.Signals(self.stop.signum).name if self.stop.requested else None,
         }
 
     def _floors(self) -> dict:
@@ -124,30 +131,41 @@ class MappingSession:
         return baseline
 
     def _resume(self, path: str) -> int:
-        """Restore mapper, scorer and pose source from `path`; the last frame it holds."""
+        """Restore mapper, scorer, pose source and segments from `path`; its last frame."""
         resumed = load_checkpoint(path, self.mapper, self.model_config)
-        self.scorer.load_state(resumed["extra"].get("scorer", {}))
-        self.pose_source.load_state(resumed["extra"].get("pose", {}))
+        extra = resumed["extra"]
+        self.scorer.load_state(extra.get("scorer", {}))
+        self.pose_source.load_state(extra.get("pose", {}))
+        self.earlier_segments = load_segments(extra.get("segments", []))
+        self._copy_snapshots(Path(path).parent / "progression", resumed["frame_index"])
         log.info("resumed from %s after frame %d", path, resumed["frame_index"])
         return resumed["frame_index"]
 
-    def _loop(self, sensor: Sensor, start_index: int, wall_start: float) -> _Progress:
+    def _copy_snapshots(self, source: Path, last_frame: int) -> None:
+        """A run resumed into another directory takes the snapshots its checkpoint covers."""
+        if not source.is_dir() or source.resolve() == self.snapshots_dir.resolve():
+            return
+        for path in sorted(source.glob("*.npz")):
+            if path.stem.isdigit() and int(path.stem) <= last_frame:
+                shutil.copy2(path, self.snapshots_dir / path.name)
+
+    def _loop(self, sensor: Sensor, wall_start: float) -> None:
         total = len(sensor) if len(sensor) > 0 else None
         snapshot_every = max(1, (total or 100) // max(1, self.settings.progression_snapshots))
-        progress = _Progress(last_index=start_index)
+        start_index = self.last_index
         bar = tqdm(total=total, desc="map", unit="frame", dynamic_ncols=True)
         for frame in sensor.frames():
             bar.update(1)
             if frame.index <= start_index:
                 continue  # already in the checkpoint
-            self._add(frame, progress)
+            self._add(frame)
             is_last = total is not None and frame.index == total - 1
             if frame.index % self.settings.every_k_frames == 0 or is_last:
                 scores = self._score(frame.index, frame.time_s)
                 elapsed = time.perf_counter() - wall_start
                 bar.set_postfix(
                     t=f"{frame.time_s:.1f}s",
-                    fps=f"{progress.processed / max(elapsed, 1e-9):.2f}",
+                    fps=f"{self.segment.frames / max(elapsed, 1e-9):.2f}",
                     mean_class="n/a"
                     if scores is None
                     else f"{scores['matching_mean_class_pct']:.1f}%",
@@ -156,11 +174,13 @@ class MappingSession:
                 self._snapshot(frame.time_s, frame.index)
             every = self.settings.checkpoint_every
             if every and frame.index % every == 0:
-                self._checkpoint(frame.index)
+                self.segment.wall_s = time.perf_counter() - wall_start
+                self._checkpoint()
+            if self.stop.requested:
+                break  # the frame in progress is done: nothing is lost
         bar.close()
-        return progress
 
-    def _add(self, frame: Frame, progress: _Progress) -> None:
+    def _add(self, frame: Frame) -> None:
         """Classify the frame's touches, estimate its pose and give it to the mapper."""
         readings = list(frame.tactile.values())
         labels = (
@@ -171,53 +191,70 @@ class MappingSession:
         self.scorer.log_touches(frame, labels)
         world_T_object = self.pose_source.estimate(frame, self.mapper)
         self.mapper.add_frame(frame, labels, world_T_object=world_T_object)
-        progress.processed += 1
-        progress.last_index = frame.index
-        if progress.first_time is None:
-            progress.first_time = frame.time_s
-        progress.last_time = frame.time_s
+        self.segment.add_frame(frame.index, frame.time_s)
+        self.last_index = frame.index
 
     def _score(self, frame_index: int, time_s: float) -> dict | None:
         field_T_gt = self.pose_source.field_T_gt_object()
         return self.scorer.score(self.mapper.field, frame_index, time_s, field_T_gt)
 
-    def _checkpoint(self, frame_index: int) -> None:
-        extra = {"scorer": self.scorer.state(), "pose": self.pose_source.state()}
-        save_checkpoint(self.checkpoint_path, self.mapper, frame_index, extra, self.model_config)
+    def _checkpoint(self) -> None:
+        """checkpoint.pt after `self.last_index`, with the segments up to now."""
+        extra = {
+            "scorer": self.scorer.state(),
+            "pose": self.pose_source.state(),
+            "segments": [s.to_dict() for s in (*self.earlier_segments, self.segment)],
+        }
+        save_checkpoint(
+            self.checkpoint_path,
+            self.mapper,
+            self.last_index,
+            extra,
+            self.model_config,
+            self.provenance,
+        )
 
     def _snapshot(self, time_s: float, frame_index: int) -> None:
         """Progression snapshots go to disk at once, so a resumed run still has the early ones."""
         maps = self.scorer.snapshot(self.mapper.field, self.pose_source.field_T_gt_object())
         if maps is None:
             return
-        np.savez_compressed(
-            self.snapshots_dir / f"{frame_index:06d}.npz",
-            time_s=time_s,
-            gt=maps["gt"],
-            pred=maps["pred"],
-            diff=maps["diff"],
-            shade=maps["shade"],
-            matching_pct_image=maps["matching_pct_image"],
-        )
+        with atomic_write(self.snapshots_dir / f"{frame_index:06d}.npz", "wb") as f:
+            np.savez_compressed(
+                f,
+                time_s=time_s,
+                gt=maps["gt"],
+                pred=maps["pred"],
+                diff=maps["diff"],
+                shade=maps["shade"],
+                matching_pct_image=maps["matching_pct_image"],
+            )
 
-    def _finish(self, progress: _Progress, baseline: dict) -> dict:
+    def _finish(self, baseline: dict) -> dict:
         """Fail on a field that saw no data; final checkpoint, scores and mesh."""
         trained_on = self.mapper.trained_on
         if (
             trained_on["optimizer_steps"] == 0
             or (trained_on["camera_points"] + trained_on["tactile_points"]) == 0
         ):
+            if self.stop.requested:
+                raise Interrupted(
+                    self.stop.signum,
+                    f"interrupted ({signal.Signals(self.stop.signum).name}) before the field "
+                    f"received any data; nothing to keep in {self.out}",
+                )
             raise NoDataError(
                 f"the field received no data in {trained_on['frames']} frames (no camera or tactile points); "
                 "check that the object is in view and the fingers touch it (sensor config)"
             )
-        self._checkpoint(progress.last_index)
+        self._checkpoint()  # first: a second signal must not lose the frames
         curve = self.scorer.curve
-        if not curve or curve[-1][0] != progress.last_index:
-            self._score(progress.last_index, progress.last_time or 0.0)
+        if not curve or curve[-1][0] != self.last_index:
+            self._score(self.last_index, self.segment.last_time_s or 0.0)
         scores, mesh = self.scorer.final_metrics(
             self.mapper.field, self.bound, baseline, self.pose_source.field_T_gt_object()
         )
         if mesh is not None:
-            mesh.export(self.out / "material_mesh.ply")
+            with atomic_write(self.out / "material_mesh.ply", "wb") as f:
+                mesh.export(f, file_type="ply")
         return scores

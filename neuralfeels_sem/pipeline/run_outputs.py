@@ -1,5 +1,5 @@
 """Files of the run-output contract (docs/design.md) that are not pictures: metrics.json,
-touches.csv, and what a timing depends on."""
+touches.csv, and what a timing depends on. Both files are written atomically."""
 
 from __future__ import annotations
 
@@ -10,6 +10,8 @@ import platform
 from pathlib import Path
 
 import numpy as np
+
+from neuralfeels_sem.utils.atomic import atomic_write, atomic_write_text
 
 
 def machine_info(device) -> dict:
@@ -30,11 +32,16 @@ def load_avg() -> list[float]:
 
 
 def write_metrics(metrics: dict, path: Path) -> None:
-    path.write_text(json.dumps(metrics, indent=2, default=json_default))
+    atomic_write_text(path, json.dumps(metrics, indent=2, default=json_default))
 
 
-def write_touches(touch_log: list[list], class_names: list[str], path: Path) -> None:
-    with path.open("w", newline="") as f:
+def write_touches(
+    touch_log: list[list], class_names: list[str], path: Path, partial: bool = False
+) -> None:
+    """One row per touch; a partial run (stopped by a signal) says so in a first `#` line."""
+    with atomic_write(path, newline="") as f:
+        if partial:
+            f.write("# partial: the run was interrupted; resume it to complete this log\n")
         writer = csv.writer(f)
         writer.writerow(["frame", "finger", "predicted", "ground_truth", "confidence"])
         for frame, finger, predicted, gt, confidence in touch_log:

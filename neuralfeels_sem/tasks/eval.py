@@ -22,6 +22,7 @@ from neuralfeels_sem.core.errors import ConfigError, DataError
 from neuralfeels_sem.mapping.checkpoint import load_checkpoint
 from neuralfeels_sem.pipeline.run_outputs import write_metrics
 from neuralfeels_sem.tasks.build import BOUND_MARGIN, build_mapper, build_scorer, model_config
+from neuralfeels_sem.utils.atomic import atomic_write
 from neuralfeels_sem.utils.device import resolve_device
 from neuralfeels_sem.viz.run_report import print_summary, write_pictures
 
@@ -71,11 +72,18 @@ def run(cfg: DictConfig) -> dict:
     scorer.load_state(resumed["extra"].get("scorer", {}))
     previous = {}
     if (run_dir / "metrics.json").is_file():
-        previous = json.loads((run_dir / "metrics.json").read_text())
+        try:
+            previous = json.loads((run_dir / "metrics.json").read_text())
+        except (json.JSONDecodeError, UnicodeDecodeError) as exc:
+            raise DataError(
+                f"{run_dir / 'metrics.json'} is damaged ({type(exc).__name__}); "
+                "move it aside to re-score the run from its checkpoint"
+            ) from exc
     # The untrained field's figures cannot be recomputed from a checkpoint: keep the run's.
     scores, mesh = scorer.final_metrics(mapper.field, bound, previous.get("baseline") or {})
     if mesh is not None:
-        mesh.export(out / "material_mesh.ply")
+        with atomic_write(out / "material_mesh.ply", "wb") as f:
+            mesh.export(f, file_type="ply")
     metrics = {
         **previous,
         **scores,

@@ -6,11 +6,15 @@
 Writes the run-output contract of docs/design.md into the run directory: metrics.json,
 material_mesh.ply, matching_curve.png, material_maps.png, progression.png,
 checkpoint.pt (every mapping.checkpoint_every frames and at the end) and touches.csv.
-The frame loop is pipeline/mapping_session.py; this module only wires the config to it.
+A resumed run continues in its checkpoint's directory and its metrics.json covers every
+segment. SIGINT / SIGTERM: the outputs are written, marked partial, and the process exits
+130 / 143 with one line on stderr (tasks/runner.py). The directory, lock and resume
+checks run before any of this (tasks/run_guard.py). The frame loop is pipeline/mapping_session.py; this module only wires the config to it.
 """
 
 from __future__ import annotations
 
+import signal
 from pathlib import Path
 
 from hydra.utils import instantiate
@@ -20,6 +24,7 @@ from neuralfeels_sem.configs import to_config
 from neuralfeels_sem.eval.oracles import oracles_used
 from neuralfeels_sem.mapping.pose_source import build_pose_source
 from neuralfeels_sem.mapping.pose_tracker import TrackerConfig
+from neuralfeels_sem.pipeline.interrupts import Interrupted
 from neuralfeels_sem.pipeline.mapping_session import MappingSession, SessionSettings
 from neuralfeels_sem.pipeline.run_outputs import (
     load_avg,
@@ -34,6 +39,7 @@ from neuralfeels_sem.tasks.build import (
     build_scorer,
     model_config,
 )
+from neuralfeels_sem.tasks.run_guard import run_provenance
 from neuralfeels_sem.tasks.runner import output_dir
 from neuralfeels_sem.utils.device import resolve_device
 from neuralfeels_sem.viz.run_report import print_summary, write_pictures
@@ -55,7 +61,7 @@ def map_object(cfg: DictConfig, obj, sensor, out: Path) -> dict:
     classifier = instantiate(cfg.classifier)
     device = resolve_device(cfg.device)
     bound = BOUND_MARGIN * obj.bounds_radius
-    mapper = build_mapper(cfg, bound, device)
+    mapper = build_mapper(cfg, bound, device, sensor.hand_model())
     model_cfg = model_config(cfg)
     scorer = build_scorer(cfg, obj)
     # A PoseTracker is built only when mapping.pose tracks.
@@ -67,7 +73,15 @@ def map_object(cfg: DictConfig, obj, sensor, out: Path) -> dict:
         progression_snapshots=int(cfg.viz.progression_snapshots),
     )
     session = MappingSession(
-        mapper, classifier, scorer, pose_source, out, bound, model_cfg, settings
+        mapper,
+        classifier,
+        scorer,
+        pose_source,
+        out,
+        bound,
+        model_cfg,
+        settings,
+        provenance=run_provenance(cfg, obj),
     )
     run_metrics = session.run(sensor, resume=cfg.mapping.resume)
     metrics = {
@@ -89,9 +103,24 @@ def map_object(cfg: DictConfig, obj, sensor, out: Path) -> dict:
         },
     }
     write_metrics(metrics, out / "metrics.json")
-    write_touches(scorer.touch_log, list(cfg.materials), out / "touches.csv")
+    write_touches(
+        scorer.touch_log, list(cfg.materials), out / "touches.csv", partial=metrics["partial"]
+    )
     if cfg.viz.plots:
         write_pictures(scorer.class_names, metrics, session.snapshots_dir, out, int(cfg.viz.dpi))
         pose_source.write_pictures(out, int(cfg.viz.dpi))
     print_summary(metrics, out)
+    if metrics["partial"]:
+        raise _interrupted(metrics, out)
     return metrics
+
+
+def _interrupted(metrics: dict, out: Path) -> Interrupted:
+    """The one line a signal-stopped run ends with: what was kept, where, how to go on."""
+    name = metrics["stopped_by"]
+    return Interrupted(
+        signal.Signals[name],
+        f"interrupted ({name}) after frame {metrics['frames_total'] - 1}: "
+        f"checkpoint, partial metrics.json, touches.csv and pictures are in {out}; "
+        f"continue with mapping.resume={out / 'checkpoint.pt'}",
+    )

@@ -2,12 +2,16 @@
 
 Single runs exit with code 2 on a UserError (no traceback). In a sweep the error is
 written to the job's directory as `error.txt` and the sweep goes on; the aggregate at
-the end counts and reports failed jobs.
+the end counts and reports failed jobs. SIGINT and SIGTERM end a run with exit code
+130 / 143 and one line on stderr saying what was kept and where (a mapping run writes its
+outputs first: pipeline/interrupts.py).
 """
 
 from __future__ import annotations
 
+import contextlib
 import logging
+import signal
 import sys
 from collections.abc import Iterator
 from contextlib import contextmanager
@@ -22,6 +26,7 @@ from omegaconf import DictConfig
 
 from neuralfeels_sem.configs import validate_config
 from neuralfeels_sem.core.errors import UserError
+from neuralfeels_sem.pipeline.interrupts import Interrupted
 from neuralfeels_sem.utils.seed import seed_everything
 
 log = logging.getLogger(__name__)
@@ -63,7 +68,18 @@ def _is_multirun() -> bool:
         return False
 
 
+def _terminate(signum: int, _frame) -> None:
+    """SIGTERM outside a mapping loop: stop like Ctrl-C does (Python's default is silent)."""
+    raise Interrupted(signum, f"terminated (SIGTERM); outputs written so far are in {output_dir()}")
+
+
+def _on_sigterm() -> None:
+    with contextlib.suppress(ValueError):  # not the main thread (a sweep worker): the default
+        signal.signal(signal.SIGTERM, _terminate)
+
+
 def run_task(cfg: DictConfig) -> float | None:
+    _on_sigterm()
     try:
         try:
             validate_config(cfg)
@@ -83,8 +99,14 @@ def run_task(cfg: DictConfig) -> float | None:
             return None
         print(f"error: {exc}", file=sys.stderr)
         sys.exit(exc.exit_code)
+    except Interrupted as exc:
+        log.debug("interrupted: %s", exc)
+        print(exc, file=sys.stderr)
+        sys.exit(exc.exit_code)
     except KeyboardInterrupt:
-        log.warning("interrupted; outputs written so far are in %s", output_dir())
+        print(
+            f"interrupted (SIGINT); outputs written so far are in {output_dir()}", file=sys.stderr
+        )
         sys.exit(130)
     objective = cfg.task.get("objective") if hasattr(cfg.task, "get") else None
     if objective and isinstance(result, dict) and objective in result:

@@ -13,6 +13,7 @@ import numpy as np
 from matplotlib.figure import Figure
 
 from neuralfeels_sem.core.palette import class_colours
+from neuralfeels_sem.utils.atomic import atomic_write
 
 FINGER_ORDER = ("index", "middle", "ring", "thumb")
 
@@ -183,5 +184,6 @@ def _bars_figure(runs, fingers, materials, with_counts: bool) -> Figure:
 
 
 def _save(fig: Figure, path: Path, dpi: int) -> Path:
-    fig.savefig(path, dpi=dpi)
+    with atomic_write(path, "wb") as f:
+        fig.savefig(f, dpi=dpi, format=Path(path).suffix.lstrip(".") or "png")
     return path

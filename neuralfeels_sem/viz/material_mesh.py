@@ -10,6 +10,7 @@ import trimesh
 
 from neuralfeels_sem.core.palette import colorize
 from neuralfeels_sem.eval.matching import Predictor, predict_labels
+from neuralfeels_sem.utils.atomic import atomic_write
 
 
 def color_mesh(
@@ -34,6 +35,6 @@ def save_material_mesh(
         raise ValueError("cannot colour an empty mesh")
     labels = predict_labels(predict, np.asarray(mesh.vertices, dtype=np.float64))
     path = Path(path)
-    path.parent.mkdir(parents=True, exist_ok=True)
-    color_mesh(mesh, labels, class_names).export(path)
+    with atomic_write(path, "wb") as f:
+        color_mesh(mesh, labels, class_names).export(f, file_type=path.suffix.lstrip(".") or "ply")
     return path

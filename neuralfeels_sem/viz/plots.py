@@ -13,6 +13,7 @@ from matplotlib.figure import Figure
 from matplotlib.patches import Patch
 
 from neuralfeels_sem.core.palette import BACKGROUND_COLOUR, IGNORE_COLOUR, class_colours, colorize
+from neuralfeels_sem.utils.atomic import atomic_write
 
 MATCH_COLOUR = (225, 225, 225)  # inside the regions of interest, prediction agrees
 MISMATCH_COLOUR = (230, 0, 120)  # inside the regions of interest, prediction differs
@@ -20,8 +21,8 @@ MISMATCH_COLOUR = (230, 0, 120)  # inside the regions of interest, prediction di
 
 def _save(fig: Figure, path: Path | str, dpi: int) -> Path:
     path = Path(path)
-    path.parent.mkdir(parents=True, exist_ok=True)
-    fig.savefig(path, dpi=dpi)
+    with atomic_write(path, "wb") as f:  # a killed run leaves the old picture or the new one
+        fig.savefig(f, dpi=dpi, format=path.suffix.lstrip(".") or "png")
     return path
 
 

@@ -38,7 +38,7 @@ def write_pictures(
             out / "matching_curve.png",
             mean_class_curve=metrics.get("matching_mean_class_curve"),
             majority=majority,
-            title=f"{metrics['config']['object']}: final mean-class "
+            title=f"{partial_mark(metrics)}{metrics['config']['object']}: final mean-class "
             f"{_fmt(metrics.get('matching_mean_class_pct'), '.1f', '%')} "
             f"(majority map {_fmt(majority.get('matching_mean_class_pct'), '.1f', '%')})",
             dpi=dpi,
@@ -57,6 +57,13 @@ def write_pictures(
         plot_fscore_curve(metrics["fscore_curve"], out / "fscore_curve.png", dpi=dpi)
 
 
+def partial_mark(metrics: dict) -> str:
+    """The title prefix of a run stopped by a signal: its pictures show an unfinished map."""
+    if not metrics.get("partial"):
+        return ""
+    return f"PARTIAL (interrupted after frame {metrics.get('frames_total', 0) - 1}) "
+
+
 def _fmt(value, spec: str = ".1f", suffix: str = "") -> str:
     return "n/a" if value is None else f"{value:{spec}}{suffix}"
 
@@ -65,7 +72,7 @@ def maps_title(metrics: dict) -> str:
     """The final figures of material_maps.png, each beside the majority-material map's."""
     majority = metrics.get("baseline_majority") or {}
     return (
-        f"{metrics['config']['object']}: mean-class {_fmt(metrics.get('matching_mean_class_pct'))}% "
+        f"{partial_mark(metrics)}{metrics['config']['object']}: mean-class {_fmt(metrics.get('matching_mean_class_pct'))}% "
         f"(majority map {_fmt(majority.get('matching_mean_class_pct'))}%), "
         f"matching {_fmt(metrics.get('matching_pct'))}% ({_fmt(majority.get('matching_pct'))}%)"
     )

@@ -1,0 +1,114 @@
+"""What a checkpoint was made from: object (name and content hash), sensor, classes, model.
+
+Resuming a run must continue the same experiment; `check_provenance` refuses a resume
+across any of these with one line naming the checkpoint's side and this run's side.
+"""
+
+from __future__ import annotations
+
+import hashlib
+from dataclasses import asdict, dataclass
+
+import numpy as np
+
+from neuralfeels_sem.core.errors import ConfigError
+
+# Keys an older `model` config carried that are not model settings (ignored when comparing,
+# so checkpoints written before they were dropped still resume): Hydra's instantiate keys,
+# and `bound`, declared (0.1) but always replaced by the one computed from the object.
+NOT_MODEL_SETTINGS = ("_target_", "_convert_", "bound")
+
+
+def object_hash(obj) -> str:
+    """A short hash of a MaterialObject's mesh, face labels and class names."""
+    digest = hashlib.sha256()
+    digest.update(np.ascontiguousarray(obj.mesh.vertices, dtype=np.float64).tobytes())
+    digest.update(np.ascontiguousarray(obj.mesh.faces, dtype=np.int64).tobytes())
+    digest.update(np.ascontiguousarray(obj.face_labels, dtype=np.int64).tobytes())
+    digest.update("\0".join(obj.class_names).encode())
+    return digest.hexdigest()[:12]
+
+
+def flat_settings(config: dict, prefix: str = "model") -> dict:
+    """`{"sdf": {"hidden_dim": 64}}` -> `{"model.sdf.hidden_dim": 64}`, minus non-settings."""
+    flat = {}
+    for key, value in config.items():
+        if key in NOT_MODEL_SETTINGS:
+            continue
+        if isinstance(value, dict):
+            flat.update(flat_settings(value, f"{prefix}.{key}"))
+        else:
+            flat[f"{prefix}.{key}"] = value
+    return flat
+
+
+@dataclass(frozen=True)
+class Provenance:
+    object_name: str
+    object_hash: str
+    sensor: str
+    classes: tuple[str, ...]
+    model: dict  # the composed model config (plain values)
+
+    def to_dict(self) -> dict:
+        data = asdict(self)
+        data["classes"] = list(self.classes)
+        return data
+
+    @classmethod
+    def from_dict(cls, data: dict) -> Provenance:
+        return cls(
+            object_name=str(data["object_name"]),
+            object_hash=str(data["object_hash"]),
+            sensor=str(data["sensor"]),
+            classes=tuple(data["classes"]),
+            model=dict(data["model"]),
+        )
+
+
+def _model_difference(saved: dict, current: dict) -> str | None:
+    """'model.a.b: 64 there, 32 here; ...' for the settings that differ, or None."""
+    saved_flat, current_flat = flat_settings(saved), flat_settings(current)
+    keys = sorted(
+        k for k in set(saved_flat) | set(current_flat) if saved_flat.get(k) != current_flat.get(k)
+    )
+    if not keys:
+        return None
+    shown = [
+        f"{k}: {saved_flat.get(k, 'unset')} there, {current_flat.get(k, 'unset')} here"
+        for k in keys[:4]
+    ]
+    more = f" and {len(keys) - 4} more" if len(keys) > 4 else ""
+    return "; ".join(shown) + more
+
+
+def check_provenance(saved: Provenance, current: Provenance, path: str) -> None:
+    """Raise ConfigError (one line, both sides named) unless `current` continues `saved`."""
+    prefix = f"mapping.resume={path}: checkpoint is"
+    if (saved.object_name, saved.object_hash) != (current.object_name, current.object_hash):
+        fix = (
+            f"resume with object={saved.object_name} or start a new run"
+            if saved.object_name != current.object_name
+            else "its mesh or labels changed since the checkpoint; start a new run"
+        )
+        raise ConfigError(
+            f"{prefix} of object {saved.object_name} (hash {saved.object_hash}), this run is "
+            f"{current.object_name} (hash {current.object_hash}): {fix}"
+        )
+    if saved.sensor != current.sensor:
+        raise ConfigError(
+            f"{prefix} of sensor {saved.sensor}, this run is {current.sensor}: "
+            f"resume with sensor={saved.sensor} or start a new run"
+        )
+    if saved.classes != current.classes:
+        raise ConfigError(
+            f"{prefix} of classes [{','.join(saved.classes)}], this run has "
+            f"[{','.join(current.classes)}]: resume with materials=[{','.join(saved.classes)}] "
+            "or start a new run"
+        )
+    difference = _model_difference(saved.model, current.model)
+    if difference:
+        raise ConfigError(
+            f"{prefix} of a different model ({difference}): "
+            "resume with the checkpoint's model settings or start a new run"
+        )
