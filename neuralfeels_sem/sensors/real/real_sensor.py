@@ -127,6 +127,12 @@ class RealSensor(Sensor):
             raise HardwareError("\n".join(errors))
         log.info("sensor=real: opened %s", ", ".join(_label(d) for d in self._devices()))
 
+    def hand_model(self):
+        """The configured hand kinematics (sensor.hand.kinematics), built by open(); None
+        without a hand. A model without link meshes (LEAP) lets camera segmentation skip
+        the hand step."""
+        return self._kinematics
+
     def close(self) -> None:
         while self._opened:
             device = self._opened.pop()
