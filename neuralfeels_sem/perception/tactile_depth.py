@@ -14,6 +14,11 @@ Sources:
   change of `full_press_intensity` or more). It ignores the illumination's direction and
   the gel's optics, so expect millimetre-level depth errors; the contact *location* is
   what it gets roughly right.
+- `net`: a small U-Net trained on simulator renders over procedural and real DIGIT
+  backgrounds (perception/tactile_depth_net; task=train_tactile_depth), reading the frame
+  against its no-contact background; `checkpoint` null = the shipped
+  assets/tactile_depth/tactile_depth.pt. A predicted contact under `min_contact_px` pixels
+  counts as none. Figures: docs/perception.md.
 """
 
 from __future__ import annotations
@@ -27,8 +32,9 @@ import numpy as np
 from neuralfeels_sem.core.digit import GEL_DISTANCE_M, MAX_PENETRATION_M
 from neuralfeels_sem.core.errors import DataError
 from neuralfeels_sem.core.frame import TactileReading
+from neuralfeels_sem.perception.tactile_depth_net import DepthNetPredictor
 
-TactileDepthSource = Literal["gt", "image"]
+TactileDepthSource = Literal["gt", "image", "net"]
 SOURCES = get_args(TactileDepthSource)
 
 
@@ -36,9 +42,11 @@ SOURCES = get_args(TactileDepthSource)
 class TactileDepthConfig:
     """`mapping.mapper.tactile_depth`: where a touch's contact depth comes from."""
 
-    # gt: simulator depth | image: background-difference estimate (real sensors). A
-    # TactileDepthSource; typed `str` because OmegaConf 2.3 rejects Literal annotations.
+    # gt: simulator depth | image: background-difference estimate | net: the learned
+    # network (sim-trained). A TactileDepthSource; typed `str` because OmegaConf 2.3
+    # rejects Literal annotations.
     source: str = "gt"
+    checkpoint: str | None = None  # source=net: a tactile_depth.pt; null = the shipped one
     contact_threshold: float = 12.0  # grey levels of change that count as contact
     full_press_intensity: float = 60.0  # grey levels of change at the deepest press
     blur_px: int = 7
@@ -60,7 +68,7 @@ class TactileDepthConfig:
 
 
 class TactileDepth:
-    """Contact depth from a tactile reading (`config.source` = gt | image)."""
+    """Contact depth from a tactile reading (`config.source` = gt | image | net)."""
 
     def __init__(self, config: TactileDepthConfig | None = None) -> None:
         config = config or TactileDepthConfig()  # ranges: TactileDepthConfig.__post_init__
@@ -69,6 +77,8 @@ class TactileDepth:
         self.full_press_intensity = float(config.full_press_intensity)
         self.blur_px = int(config.blur_px)
         self.min_contact_px = int(config.min_contact_px)
+        # Constructing the predictor reads nothing; the checkpoint loads on the first touch.
+        self.net = DepthNetPredictor(config.checkpoint, self.min_contact_px)
 
     def __call__(self, reading: TactileReading) -> np.ndarray:
         if self.source == "gt":
@@ -78,7 +88,18 @@ class TactileDepth:
                     "use mapping.mapper.tactile_depth.source=image on real sensors"
                 )
             return np.asarray(reading.gt_depth, dtype=np.float32)
+        if self.source == "net":
+            background = self._background(reading.background, reading.finger)
+            return self.net.predict(reading.image[None], background[None])[0]
         return self.from_image(reading.image, reading.background, reading.finger)
+
+    def _background(self, background: np.ndarray | None, finger: str) -> np.ndarray:
+        if background is None:
+            raise DataError(
+                f"tactile depth source={self.source} needs a no-contact background for {finger}; "
+                "record one before touching (the sensor backend stores it in TactileReading.background)"
+            )
+        return background
 
     def intensity_change(self, image: np.ndarray, background: np.ndarray) -> np.ndarray:
         """Blurred mean absolute difference to the background, in grey levels (H, W)."""
@@ -101,12 +122,7 @@ class TactileDepth:
     def from_image(
         self, image: np.ndarray, background: np.ndarray | None, finger: str = "sensor"
     ) -> np.ndarray:
-        if background is None:
-            raise DataError(
-                f"tactile depth source=image needs a no-contact background for {finger}; "
-                "record one before touching (the sensor backend stores it in TactileReading.background)"
-            )
-        change = self.intensity_change(image, background)
+        change = self.intensity_change(image, self._background(background, finger))
         mask = self.contact_mask(change)
         press = np.clip(change / self.full_press_intensity, 0.0, 1.0)
         depth = GEL_DISTANCE_M - MAX_PENETRATION_M * press

@@ -263,7 +263,7 @@ def _press_pose(
             MAX_PENETRATION_M * 0.95,
         )
     )
-    normal = _tilted(touch.normal, np.deg2rad(float(settings.max_tilt_deg)), rng)
+    normal = tilted_normal(touch.normal, np.deg2rad(float(settings.max_tilt_deg)), rng)
     roll = rng.uniform(0, 2 * np.pi)
     edge_fraction = float(settings.edge_press_fraction)
     edge = edge_fraction > 0.0 and rng.uniform() < edge_fraction
@@ -271,17 +271,17 @@ def _press_pose(
         return pose_pressing(touch.point, normal, press, roll), False
     edge_tilt = np.deg2rad(np.asarray(settings.edge_tilt_deg, dtype=np.float64))
     pose = pose_pressing_edge(
-        touch.point, normal, press, _edge_gel_point(rng), rng.uniform(*edge_tilt), roll
+        touch.point, normal, press, edge_gel_point(rng), rng.uniform(*edge_tilt), roll
     )
     return pose, True
 
 
-def _tilted(normal: np.ndarray, max_tilt_rad: float, rng: np.random.Generator) -> np.ndarray:
+def tilted_normal(normal: np.ndarray, max_tilt_rad: float, rng: np.random.Generator) -> np.ndarray:
     axis = np.cross(normal, rng.normal(size=3))
     return rotation_matrix(axis, rng.uniform(0.0, max_tilt_rad)) @ normal
 
 
-def _edge_gel_point(rng: np.random.Generator) -> tuple[float, float]:
+def edge_gel_point(rng: np.random.Generator) -> tuple[float, float]:
     """A random gel point near one of the four gel borders (metres from the centre)."""
     half_w, half_h = GEL_WIDTH_M / 2.0, GEL_HEIGHT_M / 2.0
     inset = rng.uniform(0.0, EDGE_BAND_M)

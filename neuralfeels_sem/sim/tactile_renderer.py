@@ -218,23 +218,39 @@ class DigitRenderer:
         return bool(inside.any())
 
     def render(self, world_T_object: np.ndarray, world_T_sensor: np.ndarray) -> TactileRender:
+        change, truth = self.render_change(world_T_object, world_T_sensor)
+        image = self.background_image.astype(np.float32) + change
+        if self.noise_std > 0:
+            image += self._noise()
+        truth.image = np.clip(image, 0, 255).astype(np.uint8)
+        return truth
+
+    def render_change(
+        self, world_T_object: np.ndarray, world_T_sensor: np.ndarray
+    ) -> tuple[np.ndarray, TactileRender]:
+        """The gel's shading as a change over any background ((320, 240, 3) float32 grey
+        levels, no noise) and the frame's ground truth (its `image` is the background).
+
+        `render` is background + change + noise, clipped: training data for the tactile
+        depth network composes the same sum over many backgrounds from one render.
+        """
         depth, labels = self.render_geometry(world_T_object, world_T_sensor)
         hit = depth > 0
         contact = hit & (depth < GEL_DISTANCE_M)
         gt_depth = np.where(contact, depth, 0.0).astype(np.float32)
         gt_material = np.where(contact, labels, IGNORE).astype(np.int16)
 
-        image = self.background_image.astype(np.float32)
+        change = np.zeros((DIGIT_HEIGHT, DIGIT_WIDTH, 3), np.float32)
         # Pixels the gel can feel: soft materials and texture relief reach past the surface.
         reach = self._reach[np.where(labels == IGNORE, len(self._textures), labels)]
         near = hit & (depth < reach)
         if near.any():
             object_T_sensor = invert_pose(world_T_object) @ world_T_sensor
-            self._shade(image, depth, labels, near, object_T_sensor)
-        if self.noise_std > 0:
-            image += self._noise()
-        out = np.clip(image, 0, 255).astype(np.uint8)
-        return TactileRender(image=out, depth=gt_depth, contact_mask=contact, material=gt_material)
+            self._shade(change, depth, labels, near, object_T_sensor)
+        truth = TactileRender(
+            image=self.background_image, depth=gt_depth, contact_mask=contact, material=gt_material
+        )
+        return change, truth
 
     def _noise(self) -> np.ndarray:
         """A fresh (320, 240, 3) Gaussian noise frame: a random window of a lazily drawn bank.

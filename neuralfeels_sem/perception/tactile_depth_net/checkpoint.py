@@ -1,0 +1,97 @@
+"""`tactile_depth.pt`: a trained tactile depth network and what inference needs, as plain types.
+
+Layout (loadable with `torch.load(..., weights_only=True)`):
+    format: "neuralfeels_sem.tactile_depth/1"
+    arch: "tactile-depth-unet"
+    state_dict: model tensors (fp32, or fp16 for the shipped asset)
+    width: int (channels at the first scale)
+    input_size: [rows, cols] the frame is area-downsampled to
+    meta: dict of plain values (provenance: data counts, held-out figures, settings)
+"""
+
+from __future__ import annotations
+
+from dataclasses import dataclass, field
+from pathlib import Path
+from typing import Any
+
+import torch
+
+from neuralfeels_sem.core.errors import DataError
+from neuralfeels_sem.perception.tactile_depth_net.model import ARCH, TactileDepthNet, build_model
+
+FORMAT = "neuralfeels_sem.tactile_depth/1"
+
+
+@dataclass
+class DepthNetCheckpoint:
+    state_dict: dict[str, torch.Tensor]
+    width: int
+    input_size: tuple[int, int]
+    meta: dict[str, Any] = field(default_factory=dict)
+
+    def build(self) -> TactileDepthNet:
+        """The model in eval mode, in fp32 (fp16 storage is only for shipping)."""
+        model = build_model(self.width)
+        state = {k: v.float() if v.is_floating_point() else v for k, v in self.state_dict.items()}
+        model.load_state_dict(state, strict=True)
+        return model.eval()
+
+
+def save_checkpoint(
+    path: str | Path,
+    model: TactileDepthNet,
+    input_size: tuple[int, int],
+    meta: dict[str, Any] | None = None,
+    fp16: bool = False,
+) -> Path:
+    path = Path(path)
+    state = {k: v.detach().cpu().clone() for k, v in model.state_dict().items()}
+    if fp16:
+        state = {k: v.half() if v.is_floating_point() else v for k, v in state.items()}
+    payload = {
+        "format": FORMAT,
+        "arch": ARCH,
+        "state_dict": state,
+        "width": int(model.width),
+        "input_size": [int(v) for v in input_size],
+        "meta": dict(meta or {}),
+    }
+    tmp = path.with_suffix(path.suffix + ".tmp")
+    torch.save(payload, tmp)
+    tmp.replace(path)  # never leave a half-written checkpoint behind
+    return path
+
+
+def load_checkpoint(path: str | Path) -> DepthNetCheckpoint:
+    path = Path(path)
+    if not path.is_file():
+        raise DataError(
+            f"tactile depth checkpoint {path} does not exist; train one with task=train_tactile_depth"
+        )
+    try:
+        payload = torch.load(path, map_location="cpu", weights_only=True)
+    except Exception as exc:
+        raise DataError(
+            f"tactile depth checkpoint {path} is not readable ({exc.__class__.__name__}); "
+            "retrain it with task=train_tactile_depth"
+        ) from exc
+    if not isinstance(payload, dict) or payload.get("format") != FORMAT:
+        raise DataError(
+            f"{path} is not a SemanticFeels tactile depth checkpoint (expected format {FORMAT})"
+        )
+    if payload.get("arch") != ARCH:
+        raise DataError(
+            f"tactile depth checkpoint {path} is a {payload.get('arch')}, expected {ARCH}"
+        )
+    size = payload.get("input_size")
+    if not (isinstance(size, list) and len(size) == 2 and all(int(v) >= 16 for v in size)):
+        raise DataError(
+            f"tactile depth checkpoint {path} has input_size {size}; expected [rows, cols] >= 16"
+        )
+    return DepthNetCheckpoint(
+        state_dict=payload["state_dict"],
+        width=int(payload["width"]),
+        input_size=(int(size[0]), int(size[1])),
+        meta=dict(payload.get("meta", {})),
+    )
