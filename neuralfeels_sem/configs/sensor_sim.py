@@ -161,7 +161,8 @@ class CollectTactileTaskConfig:
     # sensor=real (sensors/real/tactile_recording.py): the pressed object's material (one
     # of materials), new images per DIGIT, an optional time limit, and how much a contact
     # frame must differ from the last one kept (mean absolute difference in grey levels at
-    # quarter size; two different real grasps differ by about 8.6, a held press by < 1).
+    # quarter size; two different real grasps differ by 8.6, a real frame with 2 grey
+    # levels of added noise by 1.0: docs/hardware.md).
     material: str | None = None
     max_images: int = 200
     duration_s: float | None = None  # null: stop at max_images (or Ctrl+C)
