@@ -11,6 +11,7 @@ previous checkpoint intact; it is read with `torch.load(weights_only=True)`.
 from __future__ import annotations
 
 import os
+import warnings
 from pathlib import Path
 
 import torch
@@ -79,7 +80,10 @@ def read_checkpoint(path: str | Path) -> dict:
         raise DataError(f"checkpoint {path} does not exist; check mapping.resume")
     try:
         # RNG states must stay on the CPU; load_state_dict moves tensors to the mapper's device.
-        payload = torch.load(path, map_location="cpu", weights_only=True)
+        # A foreign file makes torch warn about its pickle protocol: the one line below says it.
+        with warnings.catch_warnings():
+            warnings.simplefilter("ignore")
+            payload = torch.load(path, map_location="cpu", weights_only=True)
     except Exception as exc:  # truncated or foreign file: say which file, not a pickle trace
         raise DataError(
             f"checkpoint {path} is unreadable ({type(exc).__name__}); point mapping.resume at a good checkpoint.pt"

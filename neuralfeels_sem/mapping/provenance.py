@@ -85,26 +85,29 @@ def _model_difference(saved: dict, current: dict) -> str | None:
 def check_provenance(saved: Provenance, current: Provenance, path: str) -> None:
     """Raise ConfigError (one line, both sides named) unless `current` continues `saved`."""
     prefix = f"mapping.resume={path}: checkpoint is"
-    if (saved.object_name, saved.object_hash) != (current.object_name, current.object_hash):
-        fix = (
-            f"resume with object={saved.object_name} or start a new run"
-            if saved.object_name != current.object_name
-            else "its mesh or labels changed since the checkpoint; start a new run"
-        )
+    saved_object = f"object {saved.object_name} (hash {saved.object_hash})"
+    current_object = f"{current.object_name} (hash {current.object_hash})"
+    if saved.object_name != current.object_name:
         raise ConfigError(
-            f"{prefix} of object {saved.object_name} (hash {saved.object_hash}), this run is "
-            f"{current.object_name} (hash {current.object_hash}): {fix}"
+            f"{prefix} of {saved_object}, this run is {current_object}: "
+            f"resume with object={saved.object_name} or start a new run"
         )
     if saved.sensor != current.sensor:
         raise ConfigError(
             f"{prefix} of sensor {saved.sensor}, this run is {current.sensor}: "
             f"resume with sensor={saved.sensor} or start a new run"
         )
+    # Before the hash: the object's labels index the classes, so its hash changes with them.
     if saved.classes != current.classes:
         raise ConfigError(
             f"{prefix} of classes [{','.join(saved.classes)}], this run has "
             f"[{','.join(current.classes)}]: resume with materials=[{','.join(saved.classes)}] "
             "or start a new run"
+        )
+    if saved.object_hash != current.object_hash:
+        raise ConfigError(
+            f"{prefix} of {saved_object}, this run is {current_object}: "
+            "its mesh or labels changed since the checkpoint; start a new run"
         )
     difference = _model_difference(saved.model, current.model)
     if difference:
