@@ -95,33 +95,21 @@ def fit(
     """Train in place; the best model (by validation accuracy) ends up in run_dir/best.pt.
 
     `checkpoint_meta` goes into every saved checkpoint's meta (e.g. `crop_px`, which
-    inference needs to preprocess as training did, so best.pt is usable on its own).
-    `draw` orders each epoch over train_images = [real; extra] (finetune.py); None: each
-    image once per epoch, shuffled.
-    """
+    inference needs to preprocess as training did, so best.pt is usable on its own);
+    `draw` (finetune.py) orders each epoch over train_images = [real; extra]."""
     if len(train_images) < 2 or len(val_images) < 1:
         raise DataError(
             f"too few images to train ({len(train_images)} train, {len(val_images)} validation); collect more"
         )
     if train_images.shape[1:3] != (input_size, input_size):
         raise ValueError(f"train images {train_images.shape} are not at input_size {input_size}")
-    run_dir.mkdir(parents=True, exist_ok=True)
-    optimizer, generator, state = _start(model, settings, device, resume_from)
+    optimizer, generator, state = _start(model, settings, device, resume_from, run_dir)
     resumed_from = state["epoch"]
     meta = {**(checkpoint_meta or {}), "settings": asdict(settings)}
     loop = _Loop(
-        model,
-        optimizer,
-        generator,
-        settings,
-        device,
-        class_names,
-        input_size,
-        mean,
-        std,
-        meta,
-        draw,
+        model, optimizer, generator, settings, device, class_names, input_size, mean, std, meta
     )
+    loop.draw = draw
     stopped = state["since_best"] >= settings.patience
     epochs = tqdm(
         range(state["epoch"], settings.max_epochs),
@@ -149,9 +137,14 @@ def fit(
 
 
 def _start(
-    model: nn.Module, settings: TrainSettings, device: torch.device, resume_from: Path | None
+    model: nn.Module,
+    settings: TrainSettings,
+    device: torch.device,
+    resume_from: Path | None,
+    run_dir: Path,
 ) -> tuple[torch.optim.Optimizer, torch.Generator, dict]:
     """Optimiser, random stream and loop state: fresh, or restored from `resume_from`."""
+    run_dir.mkdir(parents=True, exist_ok=True)
     model.to(device)
     optimizer = torch.optim.AdamW(
         model.parameters(), lr=settings.lr, weight_decay=settings.weight_decay

@@ -109,10 +109,7 @@ def train_classifier(
     init_from: str | None = None,
 ) -> dict:
     """Train `classifier`'s model on `data` (seeded by settings.seed); returns the report.
-
-    `init_from` (`shipped` or a classifier.pt) fine-tunes that model, at its input size
-    and crop, instead of training a new one.
-    """
+    `init_from` (`shipped` or a classifier.pt) fine-tunes that model at its size and crop."""
     class_names = list(classifier.class_names)
     init = initial_checkpoint(init_from, class_names) if init_from else None
     size, crop_px = _input_of(classifier, init)
@@ -148,22 +145,13 @@ def train_classifier(
     report = _report(predict, loaded, parts, data.root, class_names)
     report["training"] = {
         **asdict(settings),
-        "input_size": size,
-        "crop_px": crop_px,
-        "device": str(device),
-        "weights": classifier.weights,
-        "init_from": init_from,
-        "mix": mix,
+        **{"input_size": size, "crop_px": crop_px, "device": str(device)},
+        **{"weights": classifier.weights, "init_from": init_from, "mix": mix},
         **_outcome(result),
     }
-    meta = {
-        "crop_px": crop_px,
-        "val_accuracy": report["val_accuracy"],
-        "test_accuracy": report["test_accuracy"],
-        "per_sensor": report["per_sensor"],
-        "data_root": report["data"]["root"],
-        "training": report["training"],
-    }
+    meta = {"crop_px": crop_px, "data_root": report["data"]["root"]}
+    for key in ("val_accuracy", "test_accuracy", "per_sensor", "training"):
+        meta[key] = report[key]
     save_checkpoint(
         run_dir / "classifier.pt", model, class_names, size, mean, std, meta=meta, fp16=export_fp16
     )
