@@ -8,8 +8,9 @@ The same steps run on real, simulated and replayed frames (docs/perception.md):
 3. plane: fit the dominant plane (RANSAC) and drop it when it holds a large share of the
    points, is wider than a held object and passes clear of every fingertip (a table, not
    the object's flat face);
-4. cluster: split the rest at depth jumps into connected pixel clusters and keep those
-   with a point within `fingertip_radius_m` of a fingertip (the nearest one at least).
+4. cluster: split the rest at depth jumps into connected pixel clusters, keep those with
+   a point within `fingertip_radius_m` of a fingertip (the nearest one at least) and the
+   clusters within `cluster_merge_m` of a kept one in 3D.
 A frame with no such cluster has no object mask (the object is out of view or hidden).
 """
 
@@ -23,6 +24,7 @@ from typing import Protocol
 import cv2
 import numpy as np
 import trimesh
+from scipy.spatial import cKDTree
 
 from neuralfeels_sem.core.frame import CameraReading
 from neuralfeels_sem.core.geometry import invert_pose, transform_points
@@ -52,8 +54,8 @@ class SegmentationConfig:
     # fingers), metres: the grasped object and the fingertips, not the table or the arm.
     workspace_min: list[float] = field(default_factory=lambda: [-0.01, -0.15, -0.06])
     workspace_max: list[float] = field(default_factory=lambda: [0.25, 0.15, 0.20])
-    hand_margin_m: float = 0.008  # measured depth at most this much nearer is still the hand
-    hand_dilation_px: int = 2  # the rendered hand grown by this many pixels (calibration slack)
+    hand_margin_m: float = 0.005  # measured depth at most this much nearer is still the hand
+    hand_dilation_px: int = 1  # the rendered hand grown by this many pixels (calibration slack)
     plane_inlier_m: float = 0.005
     plane_iterations: int = 100
     plane_min_share: float = 0.2  # of the remaining points, for a plane to be removed
@@ -63,6 +65,7 @@ class SegmentationConfig:
     plane_clearance_m: float = 0.02  # a plane nearer than this to a fingertip is the object
     cluster_gap_m: float = 0.01  # a depth jump this large between neighbours splits clusters
     min_cluster_px: int = 30
+    cluster_merge_m: float = 0.02  # clusters this close (3D) to a kept one are the object too
     fingertip_radius_m: float = 0.04
     seed: int = 0  # RANSAC draws
 
@@ -78,7 +81,7 @@ class SegmentationConfig:
             )
         positive = (
             "hand_margin_m", "plane_inlier_m", "plane_iterations", "cluster_gap_m",
-            "min_cluster_px", "fingertip_radius_m", "plane_clearance_m", "plane_min_extent_m",
+            "min_cluster_px", "cluster_merge_m", "fingertip_radius_m", "plane_clearance_m", "plane_min_extent_m",
         )  # fmt: skip
         for key in positive:
             if getattr(self, key) <= 0:
@@ -227,18 +230,39 @@ class CameraSegmenter:
         count, labels, stats, _ = cv2.connectedComponentsWithStats(
             (mask & ~boundary).astype(np.uint8), connectivity=8
         )
-        keep = np.zeros(count, bool)
+        big = [i for i in range(1, count) if stats[i, cv2.CC_STAT_AREA] >= c.min_cluster_px]
+        points = {i: world[labels == i] for i in big}
         distances = np.full(count, np.inf)
-        for label in range(1, count):
-            if stats[label, cv2.CC_STAT_AREA] < c.min_cluster_px or len(fingertips) == 0:
-                continue
-            points = world[labels == label]
-            gaps = np.linalg.norm(points[:, None, :] - fingertips[None], axis=2)
+        for label in big if len(fingertips) else ():
+            gaps = np.linalg.norm(points[label][:, None, :] - fingertips[None], axis=2)
             distances[label] = gaps.min()
+        keep = np.zeros(count, bool)
         if np.isfinite(distances).any():
             keep = distances <= c.fingertip_radius_m
             keep[int(np.argmin(distances))] |= distances.min() <= 2 * c.fingertip_radius_m
+            self._grow(keep, points)
         return keep[labels] & mask
+
+    def _grow(self, keep: np.ndarray, points: dict[int, np.ndarray]) -> None:
+        """Add the clusters within `cluster_merge_m` (3D) of a kept one, until none is.
+
+        A part of the object that sticks out (an ear, a handle) meets the body at a depth
+        jump in the image, so it is a cluster of its own, yet touches the body in 3D.
+        """
+        while True:
+            kept = np.concatenate([points[i] for i in points if keep[i]])
+            tree = cKDTree(kept[:: max(1, len(kept) // 4000)])
+            added = [
+                i
+                for i in points
+                if not keep[i]
+                and np.isfinite(
+                    tree.query(points[i], distance_upper_bound=self.config.cluster_merge_m)[0]
+                ).any()
+            ]
+            if not added:
+                return
+            keep[added] = True
 
 
 def _smaller_spread(points: np.ndarray) -> float:

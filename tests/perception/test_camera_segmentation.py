@@ -136,3 +136,20 @@ def test_a_joint_vector_of_the_wrong_length_is_refused() -> None:
 def test_bad_settings_name_the_key(key: str, value) -> None:
     with pytest.raises(ValueError, match=key):
         SegmentationConfig(**{key: value})
+
+
+def test_a_part_split_off_by_a_depth_jump_joins_the_body_it_touches() -> None:
+    body = trimesh.creation.box(extents=(0.06, 0.06, 0.06))
+    knob = trimesh.creation.box(extents=(0.02, 0.02, 0.01))
+    # The knob sits on the body's front face (z = 0.37), 1 cm nearer the camera.
+    scene = [(body, _at(0.0, 0.0, 0.40)), (knob, _at(0.0, 0.0, 0.365))]
+    depth = _render(scene)
+    knob_seen = np.abs(depth - 0.36) < 1e-3
+    tip = np.array([[0.035, 0.0, 0.40]])  # at the body's side, over 4 cm from the knob
+    args = dict(cluster_gap_m=0.005)  # the knob's 1 cm step splits it off in the image
+    joined = CameraSegmenter(_config(**args), None)(_reading(depth), None, tip)
+    split = CameraSegmenter(_config(cluster_merge_m=1e-4, **args), None)(_reading(depth), None, tip)
+    assert knob_seen.sum() > 50
+    assert joined.mask[knob_seen].mean() > 0.95
+    assert split.mask[knob_seen].mean() < 0.05
+    assert mask_iou(joined.mask, depth > 0) > 0.85  # less the boundary pixels round the knob
