@@ -61,8 +61,10 @@ class RealSenseDepthNoise:
         self.intrinsics = intrinsics
         self._rng = np.random.default_rng(seed)
         v, u = np.mgrid[0 : intrinsics.height, 0 : intrinsics.width].astype(np.float32)
-        self._ray_x = (u - intrinsics.cx) / intrinsics.fx
-        self._ray_y = (v - intrinsics.cy) / intrinsics.fy
+        self._ray_x = ((u - intrinsics.cx) / intrinsics.fx).astype(np.float32)
+        self._ray_y = ((v - intrinsics.cy) / intrinsics.fy).astype(np.float32)
+        self._ray_sq = self._ray_x**2 + self._ray_y**2 + 1.0
+        self._cos_sq = np.float32(np.cos(np.deg2rad(config.grazing_deg)) ** 2)
 
     def sigma(self, depth: np.ndarray) -> np.ndarray:
         """Depth standard deviation (metres) at depth z: z^2 * subpixel / (focal_px * baseline)."""
@@ -89,18 +91,20 @@ class RealSenseDepthNoise:
 
     def _grazing(self, depth: np.ndarray) -> np.ndarray:
         """Pixels whose surface normal is more than grazing_deg from the viewing ray."""
+        depth = depth.astype(np.float32, copy=False)
         px, py = self._ray_x * depth, self._ray_y * depth
-        dxv, dxu = np.gradient(px)
-        dyv, dyu = np.gradient(py)
-        dzv, dzu = np.gradient(depth)
-        normal = np.stack(
-            [dyu * dzv - dzu * dyv, dzu * dxv - dxu * dzv, dxu * dyv - dyu * dxv], axis=-1
-        )
-        ray = np.stack([self._ray_x, self._ray_y, np.ones_like(self._ray_x)], axis=-1)
-        cos = np.abs((normal * ray).sum(-1)) / np.maximum(
-            np.linalg.norm(normal, axis=-1) * np.linalg.norm(ray, axis=-1), 1e-20
-        )
-        return cos < np.cos(np.deg2rad(self.config.grazing_deg))
+        # Central differences along columns (u) and rows (v); their common factor of 2
+        # scales the normal, not its direction.
+        dxu, dxv = _derivatives(px)
+        dyu, dyv = _derivatives(py)
+        dzu, dzv = _derivatives(depth)
+        nx = dyu * dzv - dzu * dyv
+        ny = dzu * dxv - dxu * dzv
+        nz = dxu * dyv - dyu * dxv
+        # cos(angle) between the normal and the ray (x, y, 1), compared squared: no roots.
+        dot = nx * self._ray_x + ny * self._ray_y + nz
+        normal_sq = nx * nx + ny * ny + nz * nz
+        return dot * dot < self._cos_sq * normal_sq * self._ray_sq
 
     def __call__(self, depth: np.ndarray) -> np.ndarray:
         """Noisy copy of `depth` (H, W) float32: Gaussian with sigma(z), missing pixels 0."""
@@ -116,3 +120,11 @@ class RealSenseDepthNoise:
         noisy = np.where(valid, np.maximum(depth + noise, 1e-4), 0.0).astype(np.float32)
         noisy[missing] = 0.0
         return noisy
+
+
+def _derivatives(image: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
+    """Twice the central difference of a float32 image along columns and along rows."""
+    return (
+        cv2.Sobel(image, cv2.CV_32F, 1, 0, ksize=1),
+        cv2.Sobel(image, cv2.CV_32F, 0, 1, ksize=1),
+    )
