@@ -55,7 +55,7 @@ def _segment_run(name: str) -> dict:
     }
 
 
-def _camera_rate(rgbd: dict, frames: int = 30) -> float:
+def _camera_rate(rgbd: dict, frames: int = 60) -> float:
     """Camera renders per second on plushie's first `frames` rig states."""
     sensor = SimSensor(make_object("plushie", CLASSES), class_names=CLASSES, seed=0, rgbd=rgbd)
     with sensor:
