@@ -196,7 +196,9 @@ class CameraSegmenter:
         nearest = cv2.erode(hand, np.ones((size, size), np.uint8))
         return np.isfinite(nearest) & (depth >= nearest - self.config.hand_margin_m)
 
-    def _plane_pixels(self, world: np.ndarray, mask: np.ndarray, fingertips: np.ndarray):
+    def _plane_pixels(
+        self, world: np.ndarray, mask: np.ndarray, fingertips: np.ndarray
+    ) -> np.ndarray:
         """Pixels of a dominant plane clear of the fingertips (a table), else all False."""
         c = self.config
         points = world[mask]
@@ -240,6 +242,7 @@ class CameraSegmenter:
         if np.isfinite(distances).any():
             keep = distances <= c.fingertip_radius_m
             keep[int(np.argmin(distances))] |= distances.min() <= 2 * c.fingertip_radius_m
+        if keep.any():
             self._grow(keep, points)
         return keep[labels] & mask
 

@@ -153,3 +153,11 @@ def test_a_part_split_off_by_a_depth_jump_joins_the_body_it_touches() -> None:
     assert joined.mask[knob_seen].mean() > 0.95
     assert split.mask[knob_seen].mean() < 0.05
     assert mask_iou(joined.mask, depth > 0) > 0.85  # less the boundary pixels round the knob
+
+
+def test_a_cluster_far_from_every_fingertip_is_not_the_object() -> None:
+    ball = trimesh.creation.icosphere(subdivisions=3, radius=0.02)
+    depth = _render([(ball, _at(0.0, 0.0, 0.35))])
+    tip = np.array([[0.0, 0.15, 0.35]])  # 13 cm from the ball's surface
+    result = CameraSegmenter(_config(), None)(_reading(depth), None, tip)
+    assert not result.found and not result.mask.any()
