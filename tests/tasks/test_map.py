@@ -189,8 +189,14 @@ def test_resume_continues_from_the_checkpoint(tiny_run: Path, tmp_path: Path) ->
     )
     assert result.returncode == 0, result.stderr[-3000:]
     metrics = json.loads((tmp_path / "metrics.json").read_text())
-    # Frames 0-7 came from the checkpoint; only 8-11 were processed again.
-    assert metrics["frames"] == 4
+    # Frames 0-7 came from the checkpoint (its segment), 8-11 from this one: the metrics
+    # cover both, and the earlier snapshots were copied into this directory.
+    assert metrics["frames"] == 12 and metrics["partial"] is False
+    assert [(s["first_frame"], s["last_frame"]) for s in metrics["segments"]] == [(0, 7), (8, 11)]
+    assert metrics["wall_s"] == pytest.approx(sum(s["wall_s"] for s in metrics["segments"]))
+    assert {p.name for p in (tiny_run / "progression").glob("*.npz")} <= {
+        p.name for p in (tmp_path / "progression").glob("*.npz")
+    }
     assert metrics["trained_on"]["frames"] == 12
     assert metrics["matching_curve"][0][0] == 0 and metrics["matching_curve"][-1][0] == 11
     assert [r[0] for r in metrics["matching_mean_class_curve"]] == [
