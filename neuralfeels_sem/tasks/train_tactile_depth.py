@@ -38,20 +38,7 @@ def run(cfg: DictConfig) -> dict:
             f"task.held_out_seed={task.held_out_seed} equals task.seed: pick another held-out seed"
         )
     real = _real_backgrounds(task.real_backgrounds)
-    presses = DepthPressSettings(
-        sensors=list(task.sensors),
-        library_objects=list(task.library_objects),
-        firmness_mm={k: float(v) for k, v in task.firmness_mm.items()},
-        firmness_spread=float(task.firmness_spread),
-        uniform_press_fraction=float(task.uniform_press_fraction),
-        min_press_mm=float(task.min_press_mm),
-        miss_fraction=float(task.miss_fraction),
-        max_gap_mm=float(task.max_gap_mm),
-        max_tilt_deg=float(task.max_tilt_deg),
-        edge_press_fraction=float(task.edge_press_fraction),
-        edge_tilt_deg=[float(v) for v in task.edge_tilt_deg],
-        texture_scale=float(task.texture_scale),
-    )
+    presses = _press_settings(task)
     classes = list(cfg.materials)
     train = _depth_set(
         render_depth_samples(int(task.train_samples), classes, presses, int(task.seed)),
@@ -87,6 +74,23 @@ def run(cfg: DictConfig) -> dict:
         min_contact_px=int(cfg.mapping.mapper.tactile_depth.min_contact_px),
         export_fp16=bool(task.export_fp16),
         provenance=provenance,
+    )
+
+
+def _press_settings(task: DictConfig) -> DepthPressSettings:
+    return DepthPressSettings(
+        sensors=list(task.sensors),
+        library_objects=list(task.library_objects),
+        firmness_mm={k: float(v) for k, v in task.firmness_mm.items()},
+        firmness_spread=float(task.firmness_spread),
+        uniform_press_fraction=float(task.uniform_press_fraction),
+        min_press_mm=float(task.min_press_mm),
+        miss_fraction=float(task.miss_fraction),
+        max_gap_mm=float(task.max_gap_mm),
+        max_tilt_deg=float(task.max_tilt_deg),
+        edge_press_fraction=float(task.edge_press_fraction),
+        edge_tilt_deg=[float(v) for v in task.edge_tilt_deg],
+        texture_scale=float(task.texture_scale),
     )
 
 
