@@ -38,6 +38,22 @@ def to_config(schema: type[T], node: Any) -> T:
     return OmegaConf.to_object(OmegaConf.merge(OmegaConf.structured(schema), data))
 
 
+_config_subdirs: dict[str, str] = {}
+
+
+def config_subdir(output_dir: str, stamp: str) -> str:
+    """hydra.output_subdir: `.hydra`, or `.hydra/resumed_<stamp>` for a run continuing in a
+    directory whose `.hydra/` holds its first segment's config (kept as it was).
+
+    Decided once per directory and process: after Hydra writes the config, the same
+    question would get the other answer.
+    """
+    if output_dir not in _config_subdirs:
+        continuing = (Path(output_dir) / ".hydra" / "config.yaml").is_file()
+        _config_subdirs[output_dir] = f".hydra/resumed_{stamp}" if continuing else ".hydra"
+    return _config_subdirs[output_dir]
+
+
 def register_configs() -> None:
     """Import every schema module in this package and register it (idempotent)."""
     global _registered
@@ -52,6 +68,8 @@ def register_configs() -> None:
             "resume_run_dir",
             lambda resume, default: str(Path(resume).parent) if resume else default,
         )
+    if not OmegaConf.has_resolver("config_subdir"):
+        OmegaConf.register_new_resolver("config_subdir", config_subdir)
     cs = ConfigStore.instance()
     for info in pkgutil.iter_modules(__path__):
         module = importlib.import_module(f"{__name__}.{info.name}")

@@ -18,7 +18,7 @@ import pytest
 import torch
 
 from neuralfeels_sem.utils.paths import REPO_DIR
-from tests.reliability.checks import assert_refused
+from tests.reliability.checks import assert_refused, tree_digest
 
 pytestmark = pytest.mark.slow
 
@@ -118,10 +118,15 @@ def test_a_signal_keeps_every_finished_frame_and_the_run_resumes(
     assert max(int(row.split(",")[0]) for row in touches[2:]) == last
     assert (run_dir / "material_maps.png").is_file()
     assert not (run_dir / "run.lock").exists()
+    first_config = tree_digest(run_dir / ".hydra")
 
     resumed = _run([f"mapping.resume={run_dir / 'checkpoint.pt'}"])
     assert resumed.returncode == 0, resumed.stderr[-3000:]
     assert f"run directory: {run_dir}" in resumed.stdout  # continued in place
+    # The first segment's config stays; the resumed one's is written beside it.
+    configs = tree_digest(run_dir / ".hydra")
+    assert {k: v for k, v in configs.items() if k in first_config} == first_config
+    assert len([k for k in configs if k.startswith("resumed_") and k.endswith("config.yaml")]) == 1
     final = _metrics(run_dir)
     assert final["partial"] is False and final["frames"] == FRAMES
     assert [s["partial"] for s in final["segments"]] == [True, False]
