@@ -5,13 +5,37 @@ python run.py task=train_classifier dataset.root=PATH
 python run.py -m experiment=multi_material launcher=joblib
 """
 
-import hydra
-from omegaconf import DictConfig
+import os
+import signal
+import sys
 
-import neuralfeels_sem  # noqa: F401  (sets headless rendering defaults before any GL import)
-from neuralfeels_sem.configs import register_configs
+_imports_done = False
+
+
+def _stopped_during_start_up(signum: int, _frame) -> None:
+    # Until the task runs (tasks/runner.py takes over), a signal ends the start-up in one
+    # line instead of a traceback from whichever import it interrupted.
+    print(
+        f"interrupted ({signal.Signals(signum).name}) during start-up; nothing was mapped",
+        file=sys.stderr,
+        flush=True,
+    )
+    if not _imports_done:  # an import may catch SystemExit (a bare except): leave at once
+        os._exit(128 + signum)
+    sys.exit(128 + signum)
+
+
+signal.signal(signal.SIGINT, _stopped_during_start_up)
+signal.signal(signal.SIGTERM, _stopped_during_start_up)
+
+import hydra  # noqa: E402
+from omegaconf import DictConfig  # noqa: E402
+
+import neuralfeels_sem  # noqa: E402, F401  (sets headless rendering defaults before any GL import)
+from neuralfeels_sem.configs import register_configs  # noqa: E402
 
 register_configs()
+_imports_done = True
 
 
 @hydra.main(version_base="1.3", config_path="conf", config_name="config")

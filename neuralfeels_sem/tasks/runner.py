@@ -73,13 +73,16 @@ def _terminate(signum: int, _frame) -> None:
     raise Interrupted(signum, f"terminated (SIGTERM); outputs written so far are in {output_dir()}")
 
 
-def _on_sigterm() -> None:
+def _on_signals() -> None:
+    """Ctrl-C raises KeyboardInterrupt again (run.py's start-up handler ends here); SIGTERM
+    raises Interrupted."""
     with contextlib.suppress(ValueError):  # not the main thread (a sweep worker): the default
+        signal.signal(signal.SIGINT, signal.default_int_handler)
         signal.signal(signal.SIGTERM, _terminate)
 
 
 def run_task(cfg: DictConfig) -> float | None:
-    _on_sigterm()
+    _on_signals()
     try:
         try:
             validate_config(cfg)
@@ -88,7 +91,7 @@ def run_task(cfg: DictConfig) -> float | None:
             result = task(cfg)
         except InstantiationException as exc:
             # Hydra wraps what a constructor raises; a user error inside keeps its one line.
-            if isinstance(exc.__cause__, UserError):
+            if isinstance(exc.__cause__, (UserError, Interrupted)):
                 raise exc.__cause__ from None
             raise
     except UserError as exc:

@@ -160,3 +160,29 @@ def test_kill_9_at_a_random_frame_then_resume_gives_the_uninterrupted_result(
     assert (run_dir / "touches.csv").read_text() == (
         tmp_path / "reference" / "touches.csv"
     ).read_text()
+
+
+@pytest.mark.parametrize(
+    "signum, delay_s",
+    [
+        (signal.SIGINT, 0.3),  # during the imports
+        (signal.SIGINT, 2.5),
+        (signal.SIGINT, 6.0),
+        (signal.SIGTERM, 0.3),
+        (signal.SIGTERM, 4.0),
+    ],
+    ids=["SIGINT-0.3s", "SIGINT-2.5s", "SIGINT-6s", "SIGTERM-0.3s", "SIGTERM-4s"],
+)
+def test_a_signal_at_any_moment_ends_in_one_line(
+    tmp_path: Path, signum: int, delay_s: float
+) -> None:
+    run_dir = tmp_path / "run"
+    process = _start([f"hydra.run.dir={run_dir}"])
+    time.sleep(delay_s)
+    process.send_signal(signum)
+    out, err = process.communicate(timeout=300)
+    result = subprocess.CompletedProcess(process.args, process.returncode, out, err)
+    name = signal.Signals(signum).name
+    line = assert_refused(result, 128 + signum, name)
+    assert line.startswith(("interrupted", "terminated", "stopped")), line
+    assert not (run_dir / "run.lock").exists()
