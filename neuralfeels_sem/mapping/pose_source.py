@@ -22,6 +22,7 @@ from neuralfeels_sem.core.errors import ConfigError
 from neuralfeels_sem.core.frame import Frame
 from neuralfeels_sem.core.geometry import check_pose, invert_pose, orthonormalize_pose
 from neuralfeels_sem.mapping.pose_tracker import PoseTracker, TrackerConfig, constant_velocity
+from neuralfeels_sem.utils.atomic import atomic_write
 
 log = logging.getLogger(__name__)
 
@@ -225,9 +226,8 @@ class TrackedPose(PoseSource):
         ax.set_ylim(bottom=0)
         ax.grid(alpha=0.3)
         fig.tight_layout()
-        path = Path(out_dir) / "pose_error.png"
-        path.parent.mkdir(parents=True, exist_ok=True)
-        fig.savefig(path, dpi=dpi)
+        with atomic_write(Path(out_dir) / "pose_error.png", "wb") as f:
+            fig.savefig(f, dpi=dpi, format="png")
 
     # ---------------------------------------------------------------- resume
     def state(self) -> dict:
