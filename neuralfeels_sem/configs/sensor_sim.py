@@ -40,7 +40,7 @@ class SimRgbdConfig:
     width: int = 320
     height: int = 240
     fov_y_deg: float = 50.0
-    depth_noise: str = "none"  # none (exact depth: an oracle) | realsense (sim/depth_noise.py)
+    depth_noise: str = "realsense"  # realsense (sim/depth_noise.py) | none (exact depth: an oracle)
     realsense: RealSenseNoiseConfig = field(default_factory=RealSenseNoiseConfig)
     distance: float = 0.35  # from the grasp centre
     table_height: float | None = (

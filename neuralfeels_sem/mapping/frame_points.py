@@ -7,11 +7,12 @@ import dataclasses
 import numpy as np
 
 from neuralfeels_sem.core.digit import GEL_DISTANCE_M
-from neuralfeels_sem.core.frame import CameraReading, Frame
+from neuralfeels_sem.core.frame import CameraReading, Frame, TactileReading
 from neuralfeels_sem.perception.camera_segmentation import CameraSegmenter, SegmentationConfig
 from neuralfeels_sem.perception.pointcloud import camera_points, tactile_points
 from neuralfeels_sem.perception.segmentation_stats import SegmentationStats
 from neuralfeels_sem.perception.tactile_depth import TactileDepth
+from neuralfeels_sem.perception.tactile_depth_metrics import DepthCounts, depth_counts, summarise
 
 # mapping.mapper.camera_mask: the simulator's object mask (an oracle), a segmentation from
 # depth and the hand's model, or every valid pixel.
@@ -33,7 +34,9 @@ class PointExtractor:
 
     With camera_mask="segment" the object mask comes from CameraSegmenter (built on first
     use from `segmentation` and `hand_model`); `stats` keeps its running figures, and a
-    frame where it finds no object gives no camera points at all.
+    frame where it finds no object gives no camera points at all. Touches whose depth is
+    perceived (tactile_depth.source != gt) are scored against the simulator's depth where
+    it exists (`depth_counts`); `perception_summary()` gives both for metrics.json.
     """
 
     def __init__(
@@ -57,6 +60,15 @@ class PointExtractor:
         self.segmenter: CameraSegmenter | None = None
         self.stats = SegmentationStats()
         self._last: tuple[int, int, np.ndarray] | None = None  # (frame index, reading id, mask)
+        # For the run's pictures: the latest segmented camera frame and, where the
+        # simulator's mask scores it, the worst one (reading, mask[, IoU]).
+        self.last_segmented: tuple[CameraReading, np.ndarray] | None = None
+        self.worst_segmented: tuple[CameraReading, np.ndarray, float] | None = None
+        self.depth_counts = DepthCounts()
+        self.tactile_readings_scored = 0
+        # (frame index, finger) -> (reading id, depth): ingestion and pose tracking ask for
+        # the same frame's touches; each is perceived and scored once.
+        self._depths: dict[str, tuple[int, int, np.ndarray]] = {}
 
     def __call__(self, frame: Frame, world_T_object: np.ndarray) -> dict[str, np.ndarray]:
         """Object-frame surface points per source: `camera` and each finger in contact."""
@@ -80,6 +92,10 @@ class PointExtractor:
         result = self.segmenter(reading, frame.joint_positions, fingertip_points(frame))
         self.stats.add(result, reading.depth, reading.mask)
         self._last = (*key, result.mask)
+        self.last_segmented = (reading, result.mask)
+        iou = self.stats.last_iou
+        if iou is not None and (self.worst_segmented is None or iou < self.worst_segmented[2]):
+            self.worst_segmented = (reading, result.mask, iou)
         return result.mask
 
     def extract(
@@ -103,10 +119,39 @@ class PointExtractor:
                 masked = dataclasses.replace(reading, mask=mask)
                 out["camera"] = camera_points(masked, world_T_object, mask is not None)
         for finger, tactile in frame.tactile.items():
-            pts = tactile_points(tactile, self.tactile_depth(tactile), world_T_object)
+            pts = tactile_points(tactile, self.contact_depth(frame.index, tactile), world_T_object)
             if len(pts):
                 out[finger] = pts
         return out, every
+
+    def contact_depth(self, frame_index: int, reading: TactileReading) -> np.ndarray:
+        """The reading's contact depth from `tactile_depth`, scored once against the sim's."""
+        cached = self._depths.get(reading.finger)
+        if cached is not None and cached[:2] == (frame_index, id(reading)):
+            return cached[2]
+        depth = self.tactile_depth(reading)
+        if self.tactile_depth.source != "gt" and reading.gt_depth is not None:
+            self.depth_counts += depth_counts(depth, reading.gt_depth, reading.gt_contact_mask)
+            self.tactile_readings_scored += 1
+        self._depths[reading.finger] = (frame_index, id(reading), depth)
+        return depth
+
+    def perception_summary(self) -> dict:
+        """metrics.json["perception"]: how the perceived inputs compare with the simulator's
+        ground truth (None where a source is the ground truth itself or none exists)."""
+        camera = self.stats.summary()
+        tactile = summarise(self.depth_counts)
+        return {
+            "camera_mask": self.camera_mask,
+            "camera_mask_iou": camera["mask_iou_mean"],
+            "camera_frames_segmented": camera["camera_frames_segmented"],
+            "camera_frames_skipped": camera["camera_frames_no_object"],
+            "segmentation_ms_mean": camera["segmentation_ms_mean"],
+            "tactile_depth_source": self.tactile_depth.source,
+            "tactile_readings_scored": self.tactile_readings_scored,
+            "tactile_contact_iou": tactile["contact_iou"],
+            "tactile_depth_mae_mm": tactile["depth_mae_mm"],
+        }
 
 
 def _valid_mask(reading: CameraReading, mask: np.ndarray) -> np.ndarray:

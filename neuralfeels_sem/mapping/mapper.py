@@ -81,10 +81,10 @@ class MapperConfig:
     window_recent: int = 4  # keyframes: the most recent ones in every window
     window_by_loss: int = 4  # plus older ones drawn by their last loss
     max_keyframes: int = 200
-    # Camera points inside: gt (the simulator's object mask, an oracle), segment (a
-    # segmentation from depth and the hand's model, perception/camera_segmentation.py) or
-    # none (every valid pixel: hand, table and background too).
-    camera_mask: str = "gt"
+    # Camera points inside: segment (a segmentation from depth and the hand's model,
+    # perception/camera_segmentation.py; what a real rig has), gt (the simulator's object
+    # mask, an oracle) or none (every valid pixel: hand, table and background too).
+    camera_mask: str = "segment"
     segmentation: SegmentationConfig = field(default_factory=SegmentationConfig)
     seed: int = 0  # conf: ${seed}
     tactile_depth: TactileDepthConfig = field(default_factory=TactileDepthConfig)

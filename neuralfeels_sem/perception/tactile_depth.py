@@ -42,10 +42,10 @@ SOURCES = get_args(TactileDepthSource)
 class TactileDepthConfig:
     """`mapping.mapper.tactile_depth`: where a touch's contact depth comes from."""
 
-    # gt: simulator depth | image: background-difference estimate | net: the learned
-    # network (sim-trained). A TactileDepthSource; typed `str` because OmegaConf 2.3
-    # rejects Literal annotations.
-    source: str = "gt"
+    # net: the learned network (sim-trained; what a real rig has) | gt: simulator depth
+    # (an oracle) | image: background-difference estimate. A TactileDepthSource; typed
+    # `str` because OmegaConf 2.3 rejects Literal annotations.
+    source: str = "net"
     checkpoint: str | None = None  # source=net: a tactile_depth.pt; null = the shipped one
     contact_threshold: float = 12.0  # grey levels of change that count as contact
     full_press_intensity: float = 60.0  # grey levels of change at the deepest press

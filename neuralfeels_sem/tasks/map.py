@@ -43,6 +43,7 @@ from neuralfeels_sem.tasks.run_guard import run_provenance
 from neuralfeels_sem.tasks.runner import output_dir
 from neuralfeels_sem.utils.device import resolve_device
 from neuralfeels_sem.viz.run_report import print_summary, write_pictures
+from neuralfeels_sem.viz.segmentation_overlay import write_segmentation_pictures
 
 
 def run(cfg: DictConfig) -> dict:
@@ -91,6 +92,7 @@ def map_object(cfg: DictConfig, obj, sensor, out: Path) -> dict:
         "trained_on": mapper.trained_on,
         "pose_source": pose_source.name,
         "oracles": oracles_used(cfg),
+        "perception": mapper.points.perception_summary(),
         **pose_source.metrics(),
         "config": {
             "object": cfg.object.name,
@@ -109,6 +111,7 @@ def map_object(cfg: DictConfig, obj, sensor, out: Path) -> dict:
     if cfg.viz.plots:
         write_pictures(scorer.class_names, metrics, session.snapshots_dir, out, int(cfg.viz.dpi))
         pose_source.write_pictures(out, int(cfg.viz.dpi))
+        write_segmentation_pictures(mapper.points, out)
     print_summary(metrics, out)
     if metrics["partial"]:
         raise _interrupted(metrics, out)

@@ -52,3 +52,19 @@ def save_segmentation_overlay(
     with atomic_write(path, "wb") as f:
         f.write(encoded.tobytes())
     return path
+
+
+def write_segmentation_pictures(points, out: Path) -> list[Path]:
+    """A run's segmentation pictures from its PointExtractor (mapping/frame_points.py):
+    `segmentation.png` (the latest segmented camera frame) and, where the simulator's
+    mask scored the frames, `segmentation_worst.png` (the frame of lowest IoU). Nothing
+    when the run did not segment (camera_mask=gt | none, or no camera)."""
+    written = []
+    if points.last_segmented is not None:
+        reading, mask = points.last_segmented
+        written.append(save_segmentation_overlay(reading, mask, Path(out) / "segmentation.png"))
+    if points.worst_segmented is not None:
+        reading, mask, _ = points.worst_segmented
+        path = Path(out) / "segmentation_worst.png"
+        written.append(save_segmentation_overlay(reading, mask, path))
+    return written
