@@ -15,7 +15,10 @@ from neuralfeels_sem.eval.aggregate import read_job
 from neuralfeels_sem.eval.oracles import ORACLES, oracles_used
 
 # Overrides that do not change what a run measures.
-BOOKKEEPING_KEYS = ("seed", "experiment", "launcher")
+# `perception` (a preset of oracles) is not a setting here: the object tables have an
+# oracles column and pool runs only with the same oracles, so realistic and oracle runs
+# sit side by side there.
+BOOKKEEPING_KEYS = ("seed", "experiment", "launcher", "perception")
 BOOKKEEPING_VALUES = {"task": "map", "sensor": "sim"}
 SINGLE_MATERIAL_FLOOR = 100.0 - 1e-6  # majority map's mean-class % on a one-material object
 

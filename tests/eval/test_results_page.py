@@ -228,7 +228,8 @@ def test_runs_with_other_oracles_get_their_own_row_and_a_perception_table(
     for k, (oracles, value) in enumerate(((["object_pose"], 90.0), ([], 80.0))):
         metrics = run_metrics(value, 95.0, 50.0, 54.0, "plastic", oracles=oracles)
         metrics["perception"] = {"camera_mask_iou": 0.9 + 0.01 * k, "tactile_depth_mae_mm": 0.2}
-        write_job(sweep, str(k), ["object=patched_toy", "seed=0"], metrics)
+        preset = "perception=oracle_camera_mask" if oracles else "perception=realistic"
+        write_job(sweep, str(k), ["object=patched_toy", "seed=0", preset], metrics)
     page = generate(tmp_path, sweep)
     multi = section(page, "Multi-material objects")
     rows = {tuple(r[:2]): r for r in table_rows(multi)}
