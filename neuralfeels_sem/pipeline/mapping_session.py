@@ -113,8 +113,9 @@ class MappingSession:
             **scores,
             **totals,
             "frames_total": self.last_index + 1,
-            "partial": self.stop.requested,
-            "stopped_by": signal.Signals(self.stop.signum).name if self.stop.requested else None,
+            # A signal during the final scoring, after the last frame, leaves the run complete.
+            "partial": self.segment.partial,
+            "stopped_by": signal.Signals(self.stop.signum).name if self.segment.partial else None,
         }
 
     def _floors(self) -> dict:
