@@ -6,9 +6,29 @@ from neuralfeels_sem.eval.oracles import oracles_used
 from tests.helpers import compose_config
 
 
-def test_the_default_run_lists_mask_and_clean_depth() -> None:
-    used = oracles_used(compose_config())
-    assert "camera_mask" in used and "noise_free_depth" in used
+def test_the_default_run_uses_only_the_pose_oracle() -> None:
+    assert oracles_used(compose_config()) == ["object_pose"]
+    assert oracles_used(compose_config(["sensor=real"])) == []
+
+
+def test_the_oracle_preset_lists_every_perception_oracle() -> None:
+    assert oracles_used(compose_config(["perception=oracle"])) == [
+        "object_pose",
+        "camera_mask",
+        "tactile_contact_depth",
+        "noise_free_depth",
+    ]
+    for preset, oracle in (
+        ("oracle_camera_mask", "camera_mask"),
+        ("oracle_tactile_depth", "tactile_contact_depth"),
+        ("oracle_depth", "noise_free_depth"),
+    ):
+        assert oracles_used(compose_config([f"perception={preset}"])) == ["object_pose", oracle]
+
+
+def test_each_source_can_be_set_alone() -> None:
+    config = compose_config(["mapping.mapper.camera_mask=gt", "sensor.rgbd.depth_noise=none"])
+    assert oracles_used(config) == ["object_pose", "camera_mask", "noise_free_depth"]
 
 
 def test_segmentation_and_realsense_noise_are_no_oracles() -> None:

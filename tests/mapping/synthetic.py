@@ -33,12 +33,18 @@ def small_field(concat: bool = True, log2_table_size: int = 15) -> torch.nn.Modu
 
 def small_mapper(field: torch.nn.Module | None = None, lr: float = 3e-3, **settings):
     """An OnlineMapper with the command line's settings (MapperConfig defaults) except
-    `settings`, on `field` (default: small_field()), with FieldAdam at `lr`, on the CPU."""
+    `settings`, on `field` (default: small_field()), with FieldAdam at `lr`, on the CPU.
+
+    The synthetic frames carry exact masks and contact depths and no tactile images, so
+    the mapper takes them as given (camera_mask=gt, tactile depth gt) unless `settings`
+    say otherwise: these tests are of the mapper, perception has its own."""
     import functools
 
     from neuralfeels_sem.fields.optim import FieldAdam
     from neuralfeels_sem.mapping.mapper import MapperConfig, OnlineMapper
+    from neuralfeels_sem.perception.tactile_depth import TactileDepthConfig
 
-    config = MapperConfig(**{"num_classes": 2, **settings})
+    given = {"camera_mask": "gt", "tactile_depth": TactileDepthConfig(source="gt")}
+    config = MapperConfig(**{"num_classes": 2, **given, **settings})
     field = small_field() if field is None else field
     return OnlineMapper(config, field, functools.partial(FieldAdam, lr=lr), "cpu")
