@@ -19,6 +19,7 @@ from tqdm import tqdm
 
 from neuralfeels_sem.sensors.base import Sensor
 from neuralfeels_sem.sensors.factory import build_sensor
+from neuralfeels_sem.sensors.hand_spec import hand_model_spec
 from neuralfeels_sem.sensors.replay.recording import RecordingReader, RecordingWriter
 from neuralfeels_sem.tasks.runner import output_dir
 
@@ -83,6 +84,7 @@ def run(cfg: DictConfig) -> dict:
         frame_period_s=sensor.frame_period_s,
         config=_config_dict(cfg),
         calibration=getattr(sensor, "calibration", None),
+        hand_model=hand_model_spec(sensor.hand_model()),
     )
     try:
         writer.open()

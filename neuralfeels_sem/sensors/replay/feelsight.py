@@ -238,11 +238,8 @@ class FeelSightReader:
             raise DataError(f"FeelSight image {path} is missing or unreadable")
         return cv2.cvtColor(image, cv2.COLOR_BGR2RGB)
 
-    def _sensor_poses(self, i: int) -> dict[str, np.ndarray]:
-        if self.digit_poses is not None:
-            return {
-                f: np.asarray(self.digit_poses[f][i], dtype=np.float64) for f in self.digit_poses
-            }
+    def hand_model(self) -> object:
+        """The log's Allegro model at its base pose (for DIGIT poses and segmentation)."""
         if self._kinematics is None:
             from hydra.utils import get_class
 
@@ -251,9 +248,16 @@ class FeelSightReader:
                 self._kinematics = get_class(self._kinematics_target)(world_T_palm=base)
             except Exception as exc:  # the hand model is another module; say what is missing
                 raise DataError(
-                    f"FeelSight log without DIGIT poses needs the hand model {self._kinematics_target} ({exc})"
+                    f"FeelSight log {self.path} needs the hand model {self._kinematics_target} ({exc})"
                 ) from exc
-        return self._kinematics.sensor_poses(self.joint_states[i])
+        return self._kinematics
+
+    def _sensor_poses(self, i: int) -> dict[str, np.ndarray]:
+        if self.digit_poses is not None:
+            return {
+                f: np.asarray(self.digit_poses[f][i], dtype=np.float64) for f in self.digit_poses
+            }
+        return self.hand_model().sensor_poses(self.joint_states[i])
 
     def frame(self, i: int) -> Frame:
         poses = self._sensor_poses(i)

@@ -3,7 +3,8 @@
 Layout (schema version 1):
 
     <dir>/meta.json                 schema_version, class_names, frame_period_s, fingers,
-                                    digit/camera intrinsics, calibration, config, num_frames
+                                    digit/camera intrinsics, calibration, config, num_frames,
+                                    hand_model (class path + palm pose, or null)
     <dir>/frames.jsonl              one JSON line per frame: index, time_s, per-stream stamps,
                                     joint_positions, world_T_object, gt_world_T_object,
                                     per-finger world_T_sensor, world_T_camera, camera name
@@ -77,6 +78,7 @@ class RecordingWriter:
         config: dict | None = None,
         calibration: dict | None = None,
         workers: int = 4,
+        hand_model: dict | None = None,
     ) -> None:
         if workers < 0:
             raise ValueError(f"workers={workers} must be >= 0")
@@ -91,6 +93,8 @@ class RecordingWriter:
             "camera": None,
             "calibration": calibration or {},
             "config": config or {},
+            # sensors/hand_spec.py: the hand model's class and palm pose, for segmentation
+            "hand_model": hand_model,
             "num_frames": 0,
             "has_gt_material": False,
         }

@@ -15,6 +15,7 @@ from typing import Any
 from neuralfeels_sem.core.errors import ConfigError, DataError
 from neuralfeels_sem.core.frame import Frame
 from neuralfeels_sem.sensors.base import Sensor
+from neuralfeels_sem.sensors.hand_spec import hand_model_from_spec
 
 log = logging.getLogger(__name__)
 
@@ -88,6 +89,17 @@ class ReplaySensor(Sensor):
                 if delay > 0:
                     time.sleep(delay)
             yield frame
+
+    def hand_model(self) -> object | None:
+        """The recording's hand model, for camera segmentation: the one a native
+        recording names in meta.json, a FeelSight log's Allegro model; None if unknown."""
+        if self._reader is None:
+            self.open()
+        if self.format == "feelsight":
+            return self._reader.hand_model()
+        return hand_model_from_spec(
+            self._reader.meta.get("hand_model"), str(self._reader.path / "meta.json")
+        )
 
     def close(self) -> None:
         self._reader = None
