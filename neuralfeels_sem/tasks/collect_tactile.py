@@ -18,6 +18,7 @@ from pathlib import Path
 from hydra.utils import instantiate, to_absolute_path
 from omegaconf import DictConfig, OmegaConf
 
+from neuralfeels_sem.configs.dataset import TactileDatasetConfig
 from neuralfeels_sem.core.errors import ConfigError
 from neuralfeels_sem.perception.contact import ContactGate
 from neuralfeels_sem.sensors.real.tactile_recording import RecordingSettings, record_tactile
@@ -40,6 +41,11 @@ def run(cfg: DictConfig) -> dict:
 
 
 def _record_real(cfg: DictConfig, root: Path) -> dict:
+    if root == Path(to_absolute_path(TactileDatasetConfig().root)):
+        raise ConfigError(
+            f"sensor=real would record into {TactileDatasetConfig().root}, the simulated data "
+            "set's default folder: give real data its own, e.g. dataset.root=data/tactile/real"
+        )
     if cfg.sensor.digit is None:
         raise ConfigError("sensor.digit is null: task=collect_tactile sensor=real needs the DIGITs")
     if "contact_threshold" not in cfg.classifier:

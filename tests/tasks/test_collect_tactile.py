@@ -184,3 +184,9 @@ def test_cli_bad_object_exits_2_with_one_line(tmp_path: Path) -> None:
     errors = [line for line in result.stderr.splitlines() if line.startswith("error:")]
     assert len(errors) == 1 and "nope" in errors[0]
     assert "Traceback" not in result.stderr
+
+
+def test_real_recording_refuses_the_simulated_sets_default_folder() -> None:
+    cfg = compose_config(["task=collect_tactile", "sensor=real", "task.material=metal"])
+    with pytest.raises(ConfigError, match="dataset.root=data/tactile/real"):
+        run(cfg)
