@@ -294,3 +294,28 @@ def test_without_out_the_page_goes_to_stdout(
 ) -> None:
     assert main([str(object_sweep)]) == 0
     assert capsys.readouterr().out.startswith("# Results\n")
+
+
+def test_readme_table_is_rewritten_between_its_markers(tmp_path: Path, object_sweep: Path) -> None:
+    from neuralfeels_sem.eval.results_page import README_BEGIN, README_END
+
+    readme = tmp_path / "README.md"
+    readme.write_text(f"# Front\n\nbefore\n{README_BEGIN}\n| old |\n{README_END}\nafter\n")
+    out = tmp_path / "docs" / "results.md"
+    assert main(["--out", str(out), "--readme", str(readme), str(object_sweep)]) == 0
+    text = readme.read_text()
+    assert text.startswith("# Front\n\nbefore\n") and text.endswith("after\n")
+    assert "| old |" not in text
+    table = text.split(README_BEGIN)[1].split(README_END)[0]
+    assert table.strip() == section(out.read_text(), "Multi-material objects").strip()
+
+
+def test_readme_without_markers_is_one_line(
+    tmp_path: Path, object_sweep: Path, capsys: pytest.CaptureFixture
+) -> None:
+    readme = tmp_path / "README.md"
+    readme.write_text("# Front\n")
+    assert main(["--readme", str(readme), str(object_sweep)]) == 2
+    err = capsys.readouterr().err.strip()
+    assert err.startswith("error: ") and "README.md" in err and "\n" not in err
+    assert readme.read_text() == "# Front\n"
