@@ -10,6 +10,7 @@ from typing import Any
 
 from neuralfeels_sem.core.hand import FINGERS
 from neuralfeels_sem.sensors.real.hand_kinematics import kinematics_target
+from neuralfeels_sem.sensors.replay.damage import DAMAGE_POLICIES
 
 _STREAMS = {"QVGA": (60, 30), "VGA": (30, 15)}
 
@@ -195,10 +196,17 @@ class ReplaySensorConfig:
     realtime: bool = False  # true: yield at the recorded timing; false: as fast as consumed
     camera: str = "front-left"  # FeelSight camera to read (front-left, back-right, top-down, ...)
     max_frames: int | None = None
+    # A damaged frame (bad line in frames.jsonl, missing or unreadable file): skip it with a
+    # warning and count it in metrics.json, or stop the run naming the frame and file.
+    on_damaged_frame: str = "skip"
 
     def __post_init__(self) -> None:
         if self.format not in ("native", "feelsight"):
             raise ValueError(f"sensor.format={self.format!r} must be native or feelsight")
+        if self.on_damaged_frame not in DAMAGE_POLICIES:
+            raise ValueError(
+                f"sensor.on_damaged_frame={self.on_damaged_frame!r} must be skip or stop"
+            )
         if self.max_frames is not None and self.max_frames < 1:
             raise ValueError(f"sensor.max_frames={self.max_frames} must be >= 1")
 

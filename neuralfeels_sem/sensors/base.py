@@ -37,6 +37,10 @@ class Sensor(ABC):
         """
         return None
 
+    def damage_report(self) -> dict | None:
+        """Damaged input frames skipped so far (a replay's; metrics.json), None if none can be."""
+        return None
+
     def __len__(self) -> int:
         """Number of frames this sensor will yield (for progress bars); -1 if unknown."""
         return -1

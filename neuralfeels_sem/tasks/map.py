@@ -93,6 +93,8 @@ def map_object(cfg: DictConfig, obj, sensor, out: Path) -> dict:
         "pose_source": pose_source.name,
         "oracles": oracles_used(cfg),
         "perception": mapper.points.perception_summary(),
+        # a replay's damaged frames (skipped, listed) and dropped tail; absent otherwise
+        **({"replay": damage} if (damage := sensor.damage_report()) else {}),
         **pose_source.metrics(),
         "config": {
             "object": cfg.object.name,

@@ -34,6 +34,7 @@ from neuralfeels_sem.core.errors import DataError
 from neuralfeels_sem.core.frame import CameraReading, Frame, TactileReading
 from neuralfeels_sem.core.geometry import OPENGL_T_OPENCV, Intrinsics
 from neuralfeels_sem.core.hand import FINGERS
+from neuralfeels_sem.sensors.replay.damage import READ_ERRORS, DamagedFrame, read_or_damaged
 
 JPEG_QUALITY = 95
 
@@ -180,6 +181,32 @@ def export_feelsight(frames: Iterable[Frame], out_dir: str | Path, total: int | 
     return count
 
 
+def _read_data(pkl: Path) -> dict:
+    """data.pkl; DataError in one line when it is truncated or not a FeelSight dict."""
+    try:
+        with open(pkl, "rb") as f:
+            data = pickle.load(f)
+    except (pickle.UnpicklingError, EOFError, AttributeError, ImportError, IndexError) as exc:
+        raise DataError(
+            f"FeelSight log {pkl} is damaged ({type(exc).__name__}); restore it from the source"
+        ) from exc
+    if not isinstance(data, dict):
+        raise DataError(f"FeelSight log {pkl} holds no dict: not a FeelSight log")
+    return data
+
+
+def _read_depth(path: Path) -> tuple[np.ndarray, float]:
+    """depth.npz's depth stack and scale; DataError in one line when missing or damaged."""
+    try:
+        with np.load(path) as depth:
+            return depth["depth"], float(depth["depth_scale"])
+    except READ_ERRORS as exc:
+        raise DataError(
+            f"FeelSight log depth {path} is missing or damaged ({type(exc).__name__}); "
+            "restore it (every frame's depth is in this one file)"
+        ) from exc
+
+
 class FeelSightReader:
     """Frames from one FeelSight log directory (one camera)."""
 
@@ -195,8 +222,7 @@ class FeelSightReader:
             raise DataError(
                 f"{self.path} is not a FeelSight log (no data.pkl): fix sensor.recording"
             )
-        with open(pkl, "rb") as f:
-            self.data = pickle.load(f)
+        self.data = _read_data(pkl)
         cams = self.data.get("realsense", {})
         camera = camera.replace("_", "-")  # FeelSight spells cameras front-left; we say front_left
         if camera not in cams:
@@ -207,9 +233,7 @@ class FeelSightReader:
         self.camera_intrinsics = _intrinsics_from_feelsight(cams[camera]["intrinsics"])
         poses = np.asarray(cams[camera]["pose"], dtype=np.float64)
         self.camera_poses = poses[None] if poses.ndim == 2 else poses
-        with np.load(self.path / "realsense" / camera / "depth.npz") as depth:
-            self.depth = depth["depth"]
-            self.depth_scale = float(depth["depth_scale"])
+        self.depth, self.depth_scale = _read_depth(self.path / "realsense" / camera / "depth.npz")
         self.times = np.asarray(self.data["time"], dtype=np.float64)
         self.object_poses = np.asarray(self.data["object"]["pose"], dtype=np.float64)
         self.joint_states = np.asarray(self.data["allegro"]["joint_state"], dtype=np.float64)
@@ -222,6 +246,7 @@ class FeelSightReader:
         self._kinematics = None
         self._backgrounds: dict[str, np.ndarray] = {}
         self._length = min(len(self.times), len(self.depth), len(self.object_poses))
+        self.tail_dropped = 0  # data.pkl and depth.npz are written once, at the end
 
     class_names = None  # FeelSight has no material labels
 
@@ -232,11 +257,21 @@ class FeelSightReader:
     def frame_period_s(self) -> float:
         return float(np.median(np.diff(self.times))) if len(self.times) > 1 else 0.1
 
-    def _image(self, path: Path) -> np.ndarray:
-        image = cv2.imread(str(path))
-        if image is None:
-            raise DataError(f"FeelSight image {path} is missing or unreadable")
+    def _image(self, path: Path, index: int) -> np.ndarray:
+        """An RGB image of frame `index`; DamagedFrame when missing or unreadable."""
+        image = read_or_damaged(index, path, self.path, lambda p: cv2.imread(str(p)))
         return cv2.cvtColor(image, cv2.COLOR_BGR2RGB)
+
+    def _first_image(self, finger: str) -> np.ndarray:
+        """Frame 0's image stands in for the no-contact background; a log without it
+        cannot be replayed (every frame needs a background)."""
+        try:
+            return self._image(self.path / "allegro" / finger / "image" / "0.jpg", 0)
+        except DamagedFrame as damage:
+            raise DataError(
+                f"FeelSight log {self.path}: {damage.file} {damage.why}, and it is the "
+                f"{finger} finger's background; restore it"
+            ) from damage
 
     def hand_model(self) -> object:
         """The log's Allegro model at its base pose (for DIGIT poses and segmentation)."""
@@ -263,11 +298,9 @@ class FeelSightReader:
         poses = self._sensor_poses(i)
         tactile = {}
         for finger in self.fingers:
-            image = self._image(self.path / "allegro" / finger / "image" / f"{i}.jpg")
+            image = self._image(self.path / "allegro" / finger / "image" / f"{i}.jpg", i)
             if finger not in self._backgrounds:
-                self._backgrounds[finger] = self._image(
-                    self.path / "allegro" / finger / "image" / "0.jpg"
-                )
+                self._backgrounds[finger] = self._first_image(finger)
             mask_path = self.path / "allegro" / finger / "mask" / f"{i}.jpg"
             mask = cv2.imread(str(mask_path), cv2.IMREAD_GRAYSCALE) if mask_path.is_file() else None
             tactile[finger] = TactileReading(
@@ -282,7 +315,7 @@ class FeelSightReader:
         seg_path = folder / "seg" / f"{i}.jpg"
         seg = cv2.imread(str(seg_path), cv2.IMREAD_GRAYSCALE) if seg_path.is_file() else None
         camera = CameraReading(
-            rgb=self._image(folder / "image" / f"{i}.jpg"),
+            rgb=self._image(folder / "image" / f"{i}.jpg", i),
             depth=(np.abs(self.depth[i]) * self.depth_scale).astype(np.float32),
             intrinsics=self.camera_intrinsics,
             world_T_camera=self.camera_poses[min(i, len(self.camera_poses) - 1)] @ OPENGL_T_OPENCV,

@@ -35,6 +35,14 @@ import numpy as np
 from neuralfeels_sem.core.errors import DataError
 from neuralfeels_sem.core.frame import CameraReading, Frame, TactileReading
 from neuralfeels_sem.core.geometry import Intrinsics
+from neuralfeels_sem.sensors.replay.damage import DamagedFrame, read_or_damaged
+from neuralfeels_sem.sensors.replay.recording_files import (
+    imread_gray,
+    imread_rgb,
+    load_npz,
+    read_meta,
+    read_records,
+)
 
 SCHEMA_VERSION = 1
 
@@ -243,22 +251,20 @@ class RecordingReader:
             raise DataError(
                 f"{self.path} is not a recording (no meta.json / frames.jsonl): fix sensor.recording"
             )
-        self.meta = json.loads(meta_path.read_text())
+        self.meta = read_meta(meta_path)
         if self.meta.get("schema_version") != SCHEMA_VERSION:
             raise DataError(
                 f"{self.path}: recording schema {self.meta.get('schema_version')} != {SCHEMA_VERSION}"
             )
-        with open(self.path / "frames.jsonl") as f:
-            # A run killed mid-write may leave a partial last line: keep the complete ones.
-            self.records = []
-            for line in f:
-                try:
-                    self.records.append(json.loads(line))
-                except json.JSONDecodeError:
-                    break
-        # Files are written by threads after their line: a killed run may lack the last ones.
-        while self.records and not self._complete(self.records[-1]):
+        self.records = read_records(self.path / "frames.jsonl")
+        # A killed run leaves a partial last line, and files written by threads after
+        # their line: drop that tail (not damage); damage before it is reported per frame.
+        self.tail_dropped = 0
+        while self.records and (
+            "damaged" in self.records[-1] or not self._complete(self.records[-1])
+        ):
             self.records.pop()
+            self.tail_dropped += 1
         self._backgrounds: dict[str, np.ndarray | None] = {}
 
     def __len__(self) -> int:
@@ -282,7 +288,10 @@ class RecordingReader:
         return files
 
     def _complete(self, record: dict) -> bool:
-        return all(path.is_file() for path in self._files(record))
+        try:
+            return all(path.is_file() for path in self._files(record))
+        except (KeyError, TypeError, AttributeError):
+            return False  # a valid JSON line without a frame's keys
 
     @property
     def class_names(self) -> list[str] | None:
@@ -300,17 +309,34 @@ class RecordingReader:
         return self._backgrounds[finger]
 
     def frame(self, position: int) -> Frame:
+        """The frame at `position`; DamagedFrame when its line or one of its files is bad."""
         record = self.records[position]
-        name = _name(record["index"])
+        if "damaged" in record:
+            raise DamagedFrame(record["index"], "frames.jsonl", record["damaged"])
+        try:
+            return self._frame(record)
+        except (KeyError, TypeError, AttributeError) as exc:
+            raise DamagedFrame(
+                int(record.get("index", position)),
+                "frames.jsonl",
+                f"holds a record without {exc}",
+            ) from exc
+
+    def _read(self, index: int, path: Path, read):
+        return read_or_damaged(index, path, self.path, read)
+
+    def _frame(self, record: dict) -> Frame:
+        index = int(record["index"])
+        name = _name(index)
         tactile = {}
         for finger, info in record["tactile"].items():
             gt = {}
             if info["gt"]:
-                with np.load(self.path / "gt" / "tactile" / finger / f"{name}.npz") as data:
-                    gt = {key: data[key] for key in info["gt"]}
+                gt_path = self.path / "gt" / "tactile" / finger / f"{name}.npz"
+                gt = self._read(index, gt_path, lambda p, keys=info["gt"]: load_npz(p, keys))
             tactile[finger] = TactileReading(
                 finger=finger,
-                image=_read_png(self.path / "tactile" / finger / f"{name}.png"),
+                image=self._read(index, self.path / "tactile" / finger / f"{name}.png", imread_rgb),
                 world_T_sensor=np.asarray(info["world_T_sensor"]),
                 intrinsics=Intrinsics(**self.meta["digit_intrinsics"][finger]),
                 background=self._background(finger),
@@ -321,12 +347,13 @@ class RecordingReader:
         camera = None
         if record["camera"] is not None:
             info = record["camera"]
-            depth = np.load(self.path / "camera" / "depth" / f"{name}.npy")
+            camera_dir = self.path / "camera"
+            depth = self._read(index, camera_dir / "depth" / f"{name}.npy", np.load)
             mask = None
             if info["mask"]:
-                mask = _read_png(self.path / "camera" / "mask" / f"{name}.png", rgb=False) > 127
+                mask = self._read(index, camera_dir / "mask" / f"{name}.png", imread_gray) > 127
             camera = CameraReading(
-                rgb=_read_png(self.path / "camera" / "rgb" / f"{name}.png"),
+                rgb=self._read(index, camera_dir / "rgb" / f"{name}.png", imread_rgb),
                 depth=depth,
                 intrinsics=Intrinsics(**self.meta["camera"]["intrinsics"]),
                 world_T_camera=np.asarray(info["world_T_camera"]),
@@ -336,7 +363,7 @@ class RecordingReader:
         gt_pose = record["gt_world_T_object"]
         joints = record["joint_positions"]
         return Frame(
-            index=record["index"],
+            index=index,
             time_s=record["time_s"],
             world_T_object=np.asarray(record["world_T_object"]),
             tactile=tactile,

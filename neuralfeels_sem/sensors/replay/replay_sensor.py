@@ -2,6 +2,8 @@
 
 `realtime=False` yields as fast as the consumer takes frames (the default for mapping
 and evaluation); `realtime=True` sleeps so frames come out at their recorded times.
+A damaged frame is skipped with a warning and counted, or ends the run
+(`on_damaged_frame`, damage.py).
 """
 
 from __future__ import annotations
@@ -16,6 +18,7 @@ from neuralfeels_sem.core.errors import ConfigError, DataError
 from neuralfeels_sem.core.frame import Frame
 from neuralfeels_sem.sensors.base import Sensor
 from neuralfeels_sem.sensors.hand_spec import hand_model_from_spec
+from neuralfeels_sem.sensors.replay.damage import DAMAGE_POLICIES, DamagedFrame, DamageLog
 
 log = logging.getLogger(__name__)
 
@@ -33,9 +36,14 @@ class ReplaySensor(Sensor):
         name: str = "replay",
         obj: Any = None,
         class_names: Sequence[str] | None = None,
+        on_damaged_frame: str = "skip",
     ) -> None:
         if format not in ("native", "feelsight"):
             raise ValueError(f"format={format!r} must be native or feelsight")
+        if on_damaged_frame not in DAMAGE_POLICIES:
+            raise ValueError(f"on_damaged_frame={on_damaged_frame!r} must be skip or stop")
+        self.on_damaged_frame = on_damaged_frame
+        self.damage: DamageLog | None = None
         self.recording = recording
         self.realtime = realtime
         self.format = format
@@ -68,6 +76,8 @@ class ReplaySensor(Sensor):
                 f"recording {path} labels ground truth with materials={recorded}: run with the same materials"
             )
         self.frame_period_s = self._reader.frame_period_s
+        self.damage = DamageLog(path, self.on_damaged_frame)
+        self.damage.note_tail(self._reader.tail_dropped)
         log.info("replaying %d frames from %s (%s)", len(self), path, self.format)
 
     def __len__(self) -> int:
@@ -82,7 +92,11 @@ class ReplaySensor(Sensor):
         start_wall = time.monotonic()
         start_time = None
         for position in range(len(self)):
-            frame = self._reader.frame(position)
+            try:
+                frame = self._reader.frame(position)
+            except DamagedFrame as damage:
+                self.damage.add(damage)  # warns and counts, or stops the run in one line
+                continue
             if self.realtime:
                 start_time = frame.time_s if start_time is None else start_time
                 delay = (frame.time_s - start_time) - (time.monotonic() - start_wall)
@@ -100,6 +114,10 @@ class ReplaySensor(Sensor):
         return hand_model_from_spec(
             self._reader.meta.get("hand_model"), str(self._reader.path / "meta.json")
         )
+
+    def damage_report(self) -> dict | None:
+        """Frames skipped as damaged and records dropped from the end (metrics.json)."""
+        return None if self.damage is None else self.damage.report()
 
     def close(self) -> None:
         self._reader = None
