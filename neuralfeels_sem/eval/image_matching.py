@@ -96,14 +96,36 @@ class ImageMatcher:
         matching_pct_image is NaN when no region-of-interest pixel is visible from the views
         (e.g. a region only on the underside); the 3D form still scores it.
         """
+        points = self.surface_points()
+        labels = predict_labels(predict, points) if len(points) else np.zeros(0, dtype=np.int64)
+        return self.label_maps(labels)
+
+    def surface_points(self) -> np.ndarray:
+        """(P, 3) ground-truth surface points the object pixels see, views in order."""
         if not self._ready:
             self._prepare()
+        return self.points
+
+    def value_image(self, values: np.ndarray) -> np.ndarray:
+        """(P,) values at `surface_points()` -> (V, H, W) float32 images, NaN off the object."""
+        points = self.surface_points()
+        values = np.asarray(values, dtype=np.float32)
+        if values.shape != (len(points),):
+            raise ValueError(f"{values.shape} values for {len(points)} surface points")
+        image = np.full(self.gt.shape, np.nan, dtype=np.float32)
+        start = 0
+        for v, pixels in enumerate(self._pixels):
+            image[v].reshape(-1)[pixels] = values[start : start + len(pixels)]
+            start += len(pixels)
+        return image
+
+    def label_maps(self, labels: np.ndarray) -> dict:
+        """`maps` of classes already predicted at `surface_points()`."""
+        if not self._ready:
+            self._prepare()
+        if labels.shape != (len(self.points),):
+            raise ValueError(f"{labels.shape} labels for {len(self.points)} surface points")
         pred = np.full_like(self.gt, BACKGROUND)
-        labels = (
-            predict_labels(predict, self.points)
-            if len(self.points)
-            else np.zeros(0, dtype=np.int64)
-        )
         start = 0
         for v, pixels in enumerate(self._pixels):
             pred[v].reshape(-1)[pixels] = labels[start : start + len(pixels)]

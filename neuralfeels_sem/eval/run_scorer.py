@@ -27,6 +27,11 @@ from neuralfeels_sem.eval.image_matching import ImageMatcher
 from neuralfeels_sem.eval.matching import MatchingEvaluator
 from neuralfeels_sem.eval.mesh_transfer import labels_from_mesh
 from neuralfeels_sem.eval.shape import shape_metrics
+from neuralfeels_sem.eval.uncertainty import (
+    entropy_of_probabilities,
+    probability_predictor,
+    uncertainty_scores,
+)
 from neuralfeels_sem.fields.semantic_field import evaluate_chunked
 from neuralfeels_sem.mapping.mesh import extract_mesh
 from neuralfeels_sem.objects.material_object import MaterialObject
@@ -142,10 +147,23 @@ class RunScorer:
         return result
 
     def snapshot(self, field: nn.Module, field_T_gt: np.ndarray | None = None) -> dict | None:
-        """Image-form maps of the current field (None when the object has no regions of interest)."""
+        """Image-form maps of the current field (None when the object has no regions of interest),
+        with `entropy`: (V, H, W) normalised entropy of the material branch, NaN off the object."""
         if self.images is None:
             return None
-        return self.images.maps(material_predictor(field, field_T_gt))
+        # One query of the field gives both the labels and their uncertainty.
+        probs = probability_predictor(field, field_T_gt)(self.images.surface_points())
+        maps = self.images.label_maps(probs.argmax(axis=1).astype(np.int64))
+        maps["entropy"] = self.images.value_image(entropy_of_probabilities(probs))
+        return maps
+
+    def uncertainty(self, field: nn.Module, field_T_gt: np.ndarray | None = None) -> dict | None:
+        """AUROC and ECE of the field's uncertainty vs its errors on the matching samples
+        (eval/uncertainty.py); None when the object has no regions of interest."""
+        if self.matching is None:
+            return None
+        probs = probability_predictor(field, field_T_gt)(self.matching.points)
+        return uncertainty_scores(probs, self.matching.labels)
 
     # ---------------------------------------------------------------- summaries
     def classifier_accuracy(self) -> dict:
@@ -249,6 +267,7 @@ class RunScorer:
         metrics = {key: final.get(key) for key in RUN_MATCHING_KEYS + SHAPE_KEYS}
         metrics["matching_curve"] = self.curve
         metrics["matching_mean_class_curve"] = self.mean_class_curve
+        metrics["uncertainty"] = self.uncertainty(field, field_T_gt)
         metrics["classifier_accuracy"] = self.classifier_accuracy()
         metrics["baseline_majority"] = majority
         metrics["baseline"] = {k: baseline.get(k) for k in RUN_MATCHING_KEYS + SHAPE_KEYS[:2]}

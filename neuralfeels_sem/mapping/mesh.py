@@ -12,6 +12,7 @@ from torch import nn
 
 from neuralfeels_sem.core.errors import NoDataError
 from neuralfeels_sem.core.palette import class_colours
+from neuralfeels_sem.fields.material_uncertainty import normalised_entropy
 
 
 def _device(field: nn.Module) -> torch.device:
@@ -98,7 +99,8 @@ def extract_mesh(
 
     Vertex colours come from `palette` (material name -> RGB; core.palette's colours for names
     it lacks or when None) of
-    each vertex's predicted class; the class index is the vertex attribute `label`.
+    each vertex's predicted class; the class index is the vertex attribute `label` and the
+    normalised entropy of the material branch (0-1) the vertex attribute `uncertainty`.
     Raises NoDataError when the SDF does not cross zero inside the cube (an untrained field).
     """
     grid, axis = sdf_grid(field, bound, resolution, center)
@@ -111,7 +113,8 @@ def extract_mesh(
     verts, faces, _, _ = marching_cubes(grid, level=0.0, spacing=(spacing,) * 3)
     verts = verts - bound + np.asarray(center, dtype=np.float64)
     device = _device(field)
-    labels = _evaluate(field.predict_material, verts, device, 65536).astype(np.int64)
+    logits = _evaluate(field.material_logits, verts, device, 65536)
+    labels = logits.argmax(axis=1).astype(np.int64)
     table = class_colours(class_names)
     for i, name in enumerate(class_names):
         if palette and name in palette:
@@ -120,4 +123,6 @@ def extract_mesh(
     # skimage winds faces so normals point toward increasing values: outward for an SDF.
     mesh = trimesh.Trimesh(vertices=verts, faces=faces, vertex_colors=colours, process=False)
     mesh.vertex_attributes["label"] = labels
+    uncertainty = normalised_entropy(torch.as_tensor(logits)).numpy().astype(np.float32)
+    mesh.vertex_attributes["uncertainty"] = uncertainty
     return mesh

@@ -228,6 +228,7 @@ class MappingSession:
                 pred=maps["pred"],
                 diff=maps["diff"],
                 shade=maps["shade"],
+                entropy=maps["entropy"],
                 matching_pct_image=maps["matching_pct_image"],
             )
 

@@ -13,6 +13,7 @@ from neuralfeels_sem.viz.plots import (
     plot_material_maps,
     plot_progression,
 )
+from neuralfeels_sem.viz.uncertainty_plots import plot_uncertainty_map
 
 log = logging.getLogger(__name__)
 
@@ -23,6 +24,8 @@ def load_snapshots(directory: Path) -> list[tuple[float, dict]]:
         with np.load(path) as data:
             maps = {k: data[k] for k in ("gt", "pred", "diff", "shade")}
             maps["matching_pct_image"] = float(data["matching_pct_image"])
+            if "entropy" in data.files:  # snapshots written before uncertainty was recorded lack it
+                maps["entropy"] = data["entropy"]
             snapshots.append((float(data["time_s"]), maps))
     return snapshots
 
@@ -53,6 +56,14 @@ def write_pictures(
             np.linspace(0, len(snapshots) - 1, min(6, len(snapshots))).round().astype(int)
         )
         plot_progression([snapshots[i] for i in pick], names, out / "progression.png", dpi=dpi)
+        if "entropy" in snapshots[-1][1]:
+            plot_uncertainty_map(
+                snapshots[-1][1],
+                names,
+                out / "uncertainty_map.png",
+                dpi=dpi,
+                title=uncertainty_title(metrics),
+            )
     if metrics.get("fscore_curve"):
         plot_fscore_curve(metrics["fscore_curve"], out / "fscore_curve.png", dpi=dpi)
 
@@ -78,6 +89,15 @@ def maps_title(metrics: dict) -> str:
     )
 
 
+def uncertainty_title(metrics: dict) -> str:
+    """How well uncertainty predicts the final map's errors (the title of uncertainty_map.png)."""
+    block = metrics.get("uncertainty") or {}
+    return (
+        f"{partial_mark(metrics)}{metrics['config']['object']}: uncertainty vs error "
+        f"AUROC {_fmt(block.get('auroc'), '.2f')}, ECE {_fmt(block.get('ece'), '.3f')}"
+    )
+
+
 def _pct(value) -> str:
     return _fmt(value, ".1f", "%")
 
@@ -92,6 +112,7 @@ def summary_rows(metrics: dict) -> list[tuple[str, str, str, str]]:
     acc = metrics["classifier_accuracy"]
     majority = metrics.get("baseline_majority") or {}
     base = metrics.get("baseline") or {}
+    unc = metrics.get("uncertainty") or {}
 
     def matching(name: str, key: str) -> tuple[str, str, str, str]:
         return name, _pct(metrics.get(key)), _pct(majority.get(key)), _pct(base.get(key))
@@ -113,6 +134,12 @@ def summary_rows(metrics: dict) -> list[tuple[str, str, str, str]]:
             _fmt(metrics.get("chamfer_mm"), ".2f", " mm"),
             "",
             _fmt(base.get("chamfer_mm"), ".2f", " mm"),
+        ),
+        (
+            "uncertainty AUROC / ECE",
+            f"{_fmt(unc.get('auroc'), '.2f')} / {_fmt(unc.get('ece'), '.3f')}",
+            "",
+            "",
         ),
         ("classifier accuracy (judged)", _share(acc.get("overall")), "", ""),
         ("classifier coverage", _share(acc.get("coverage")), "", ""),

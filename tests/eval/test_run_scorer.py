@@ -30,6 +30,9 @@ class SphereField(nn.Module):
             return torch.full((len(x),), self.everywhere, dtype=torch.int64)
         return torch.where(x[:, 1] > 0, 0, 2)
 
+    def material_logits(self, x: torch.Tensor) -> torch.Tensor:
+        return 20.0 * nn.functional.one_hot(self.predict_material(x), 4).float()
+
 
 @pytest.fixture(scope="module")
 def scorer() -> RunScorer:
@@ -105,3 +108,35 @@ def test_a_failed_extraction_keeps_every_other_figure(scorer: RunScorer, monkeyp
     out, _ = scorer.field_metrics(SphereField(), bound=1.2 * RADIUS)
     assert out["matching_mesh_pct"] == 0.0 and out["fscore_5mm"] == 0.0  # no surface at all
     assert out["notes"] == ["no zero crossing"]
+
+
+class ShiftedBorderField(SphereField):
+    """Plastic where y > 1 cm (the truth: y > 0), unsure near its own border: wrong on 0 < y < 1 cm."""
+
+    def predict_material(self, x: torch.Tensor) -> torch.Tensor:
+        return torch.where(x[:, 1] > 0.01, 0, 2)
+
+    def material_logits(self, x: torch.Tensor) -> torch.Tensor:
+        sureness = 300.0 * (x[:, 1] - 0.01).abs()
+        return nn.functional.one_hot(self.predict_material(x), 4).float() * sureness[:, None]
+
+
+def test_uncertainty_predicts_where_the_map_is_wrong(scorer: RunScorer) -> None:
+    metrics, _ = scorer.final_metrics(ShiftedBorderField(), 1.2 * RADIUS, {})
+    block = metrics["uncertainty"]
+    wrong = 100.0 - metrics["matching_pct"]
+    assert block["error_share"] == pytest.approx(wrong / 100.0)
+    assert block["auroc"] > 0.85  # right samples just past the border are unsure too
+    assert block["mean_entropy_wrong"] > 2 * block["mean_entropy_correct"]
+    assert 0.0 < block["ece"] < 1.0 and block["ece_bins"] == 15
+    sure, _ = scorer.final_metrics(SphereField(), 1.2 * RADIUS, {})
+    assert sure["uncertainty"]["auroc"] is None and "undefined" in sure["uncertainty"]["note"]
+
+
+def test_snapshots_carry_the_uncertainty_of_every_object_pixel(scorer: RunScorer) -> None:
+    maps = scorer.snapshot(ShiftedBorderField())
+    entropy = maps["entropy"]
+    assert entropy.shape == maps["gt"].shape
+    on_object = maps["gt"] != -2
+    assert np.isfinite(entropy[on_object]).all() and np.isnan(entropy[~on_object]).all()
+    assert entropy[maps["diff"]].mean() > entropy[on_object & ~maps["diff"]].mean()

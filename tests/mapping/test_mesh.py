@@ -29,6 +29,11 @@ class AnalyticSphere(nn.Module):
     def predict_material(self, x: torch.Tensor) -> torch.Tensor:
         return (x[:, 2] > self.centre[2]).long()
 
+    def material_logits(self, x: torch.Tensor) -> torch.Tensor:
+        """Sure of its class except near the equator, where both classes are equally likely."""
+        margin = 200.0 * (x[:, 2] - self.centre[2]).abs()
+        return nn.functional.one_hot(self.predict_material(x), 2).float() * margin[:, None]
+
 
 def test_sphere_mesh_is_closed_on_the_sphere_and_coloured_by_material() -> None:
     mesh = extract_mesh(AnalyticSphere(0.04), bound=0.06, resolution=48, class_names=NAMES)
@@ -65,6 +70,21 @@ def test_ply_round_trip_keeps_colours(tmp_path) -> None:
     loaded = trimesh.load(path, process=False)
     np.testing.assert_allclose(loaded.vertices, mesh.vertices, atol=1e-6)
     np.testing.assert_array_equal(loaded.visual.vertex_colors, mesh.visual.vertex_colors)
+
+
+def test_vertices_carry_the_material_uncertainty_into_the_ply(tmp_path) -> None:
+    """1 on the equator (both classes equally likely), near 0 towards the poles."""
+    mesh = extract_mesh(AnalyticSphere(0.04), bound=0.06, resolution=24, class_names=NAMES)
+    uncertainty = mesh.vertex_attributes["uncertainty"]
+    z = mesh.vertices[:, 2]
+    assert uncertainty.min() >= 0.0 and uncertainty.max() <= 1.0
+    assert uncertainty[np.abs(z) > 0.03].max() < 0.05
+    assert uncertainty[np.argmin(np.abs(z))] > 0.9  # the vertex nearest the equator
+    path = tmp_path / "material_mesh.ply"
+    mesh.export(path)
+    loaded = trimesh.load(path, process=False)
+    ply_vertices = loaded.metadata["_ply_raw"]["vertex"]["data"]
+    np.testing.assert_allclose(ply_vertices["uncertainty"], uncertainty, atol=1e-6)
 
 
 @pytest.mark.parametrize("radius", [0.2, -1.0])

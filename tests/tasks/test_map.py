@@ -6,6 +6,7 @@ import json
 from pathlib import Path
 
 import pytest
+import trimesh
 
 from tests.helpers import run_cli
 
@@ -32,6 +33,7 @@ OUTPUTS = (
     "material_mesh.ply",
     "matching_curve.png",
     "material_maps.png",
+    "uncertainty_map.png",
     "progression.png",
     "checkpoint.pt",
     "touches.csv",
@@ -50,6 +52,7 @@ def tiny_run(tmp_path_factory) -> Path:
     header = next(line for line in result.stdout.splitlines() if line.startswith("metric"))
     assert header.split() == ["metric", "run", "majority", "untrained"]
     assert "mean-class matching" in result.stdout
+    assert "uncertainty AUROC / ECE" in result.stdout
     return run_dir
 
 
@@ -93,6 +96,23 @@ def test_map_writes_the_run_output_contract(tiny_run: Path) -> None:
     assert metrics["matching_pct"] > metrics["baseline"]["matching_pct"] + 20
     assert metrics["fscore_5mm"] > metrics["baseline"]["fscore_5mm"]
     assert metrics["classifier_accuracy"]["overall"] == pytest.approx(1.0)  # the oracle
+
+
+def test_map_scores_its_uncertainty_against_its_errors(tiny_run: Path) -> None:
+    metrics = json.loads((tiny_run / "metrics.json").read_text())
+    block = metrics["uncertainty"]
+    assert block["samples"] == 2000
+    assert block["error_share"] == pytest.approx(1.0 - metrics["matching_pct"] / 100.0, abs=1e-3)
+    assert 0.0 <= block["ece"] <= 1.0 and 0.0 <= block["mean_entropy"] <= 1.0
+    if block["auroc"] is None:  # a map with no wrong sample
+        assert "undefined" in block["note"]
+    else:
+        assert 0.0 <= block["auroc"] <= 1.0
+        assert block["mean_entropy_wrong"] is not None
+    ply = trimesh.load(tiny_run / "material_mesh.ply", process=False)
+    uncertainty = ply.metadata["_ply_raw"]["vertex"]["data"]["uncertainty"]
+    assert len(uncertainty) == len(ply.vertices)
+    assert uncertainty.min() >= 0.0 and uncertainty.max() <= 1.0
 
 
 def test_map_reads_every_figure_against_the_majority_map(tiny_run: Path) -> None:
