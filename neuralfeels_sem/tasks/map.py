@@ -4,7 +4,7 @@
     python run.py object=patched_toy mapping.resume=outputs/map/.../checkpoint.pt
 
 Writes the run-output contract of docs/design.md into the run directory: metrics.json,
-material_mesh.ply, matching_curve.png, material_maps.png, progression.png,
+material_mesh.ply, matching_curve.png, material_maps.png, uncertainty_map.png, progression.png,
 checkpoint.pt (every mapping.checkpoint_every frames and at the end) and touches.csv.
 A resumed run continues in its checkpoint's directory and its metrics.json covers every
 segment. SIGINT / SIGTERM: the outputs are written, marked partial, and the process exits
