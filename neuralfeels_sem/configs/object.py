@@ -1,4 +1,4 @@
-"""Schemas for conf/object/: the shipped procedural objects and `object=custom`."""
+"""Schemas for conf/object/: the shipped procedural objects, `object=custom` and `object=random`."""
 
 from __future__ import annotations
 
@@ -117,6 +117,27 @@ class CustomObjectConfig:
             )
 
 
+@dataclass
+class RandomObjectConfig:
+    """A generated benchmark object (`object=random object.seed=K`), see docs/objects.md."""
+
+    _target_: str = "neuralfeels_sem.objects.random_object.make_random_object"
+    # Below 1000: development and tuning; 1000-1019: the evaluation set (experiment=unseen_objects).
+    seed: int = 0
+    # Shape family (blobby, cylindrical, boxy, elongated, handled, rimmed); null: drawn from the seed.
+    family: str | None = None
+    # Materials the layout draws 2-4 from; null: every class in materials.
+    materials: list[str] | None = None
+    name: str = "random_${.seed}"
+    class_names: list[str] = field(default_factory=lambda: list(DEFAULT_MATERIALS))
+    # ArUco markers on the object for sensor=real's object pose; no markers: none fixed on it.
+    aruco: ArucoLayoutConfig = field(default_factory=ArucoLayoutConfig)
+
+    def __post_init__(self) -> None:
+        if self.seed < 0:
+            raise ValueError(f"object.seed={self.seed} must be >= 0 (each seed is one object)")
+
+
 def register(cs) -> None:
     # The run directory is named after the object; a custom mesh is named after its file.
     if not OmegaConf.has_resolver("file_stem"):
@@ -124,3 +145,4 @@ def register(cs) -> None:
     for name in SHIPPED_OBJECTS:
         cs.store(group="schema/object", name=name, node=ProceduralObjectConfig(name=name))
     cs.store(group="schema/object", name="custom", node=CustomObjectConfig)
+    cs.store(group="schema/object", name="random", node=RandomObjectConfig)
