@@ -12,7 +12,9 @@ sweep varied (the aggregate's groups), and draws what applies:
 - `ablation.png`: headline metrics per group (mean ± std), clustered by object, with the
   majority-material map marked on the matching panels;
 - `classifier_per_sensor.png`: from train/eval_classifier jobs' report.json, test accuracy
-  per sensor (mean ± std over runs, as figure 3B).
+  per sensor (mean ± std over runs, as figure 3B);
+- `maps_grid.png`: every mapping job's final material map (its material_maps.png) with
+  its setting and mean-class matching beside the majority map's (maps_grid.py).
 Jobs that failed or lack files are skipped; a plot that cannot be drawn is logged, never raised.
 """
 
@@ -26,6 +28,7 @@ import numpy as np
 from matplotlib.figure import Figure
 
 from neuralfeels_sem.viz.finger_material_plots import FINGER_ORDER, ordered, plot_finger_material
+from neuralfeels_sem.viz.maps_grid import MAPS_FILE, MapTile, plot_maps_grid, tile_title
 
 log = logging.getLogger(__name__)
 
@@ -298,6 +301,14 @@ def plot_experiment(summary: dict, sweep_dir: Path, dpi: int = 120) -> list[Path
     if reports:
         sensors_png = sweep_dir / "classifier_per_sensor.png"
         attempt("classifier_per_sensor", lambda: plot_classifier_sensors(reports, sensors_png, dpi))
+    tiles = [
+        MapTile(picture, tile_title(_setting(job, varying), m))
+        for job, m in loaded
+        if (picture := sweep_dir / str(job.get("job")) / MAPS_FILE).is_file()
+    ]
+    if tiles:
+        grid_png = sweep_dir / "maps_grid.png"
+        attempt("maps_grid", lambda: plot_maps_grid(tiles, grid_png, dpi=dpi))
     for written_path in written:
         log.info("wrote %s", written_path)
     return written
@@ -308,5 +319,6 @@ __all__ = [
     "plot_experiment",
     "plot_finger_material",
     "plot_groups",
+    "plot_maps_grid",
     "plot_runs_matching",
 ]

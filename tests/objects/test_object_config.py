@@ -15,7 +15,11 @@ from tests.helpers import CONF_DIR, compose_config, run_cli
 
 
 def test_every_shipped_object_has_a_yaml() -> None:
-    assert {p.stem for p in CONF_DIR.glob("object/*.yaml")} == {*SHIPPED_OBJECTS, "custom", "random"}
+    assert {p.stem for p in CONF_DIR.glob("object/*.yaml")} == {
+        *SHIPPED_OBJECTS,
+        "custom",
+        "random",
+    }
 
 
 @pytest.mark.parametrize("option", ["plushie", "custom"])

@@ -215,3 +215,42 @@ def test_heatmap_pools_touches_rather_than_averaging_runs() -> None:
     assert np.nanmean(values[0, 0]) == pytest.approx(50.0)  # what a mean of runs shows
     without_counts = [{"classifier_accuracy": {"per_finger_material": {}}}]
     assert pooled_finger_material(without_counts, ["ring"], ["metal"]) is None
+
+
+def write_maps_picture(path: Path, colour: tuple[float, float, float]) -> None:
+    """A stand-in for a job's material_maps.png: three coloured views side by side."""
+    from matplotlib.figure import Figure
+
+    fig = Figure(figsize=(6.0, 2.2))
+    for k, axis in enumerate(fig.subplots(1, 3)):
+        axis.imshow(np.ones((20, 20, 3)) * np.asarray(colour) * (0.5 + 0.25 * k))
+    fig.savefig(path, dpi=60)
+
+
+def test_maps_grid_tiles_every_job_with_its_map(tmp_path: Path) -> None:
+    from neuralfeels_sem.viz.maps_grid import tile_title
+
+    colours = [(1.0, 0.2, 0.2), (0.2, 0.8, 0.2), (0.2, 0.2, 1.0)]
+    for k, colour in enumerate(colours):
+        metrics = map_metrics({f: 0.9 for f in FINGERS}, final=80.0 + k)
+        metrics["matching_mean_class_pct"] = 70.0 + k
+        metrics["baseline_majority"] = {"matching_mean_class_pct": 50.0}
+        write_job(tmp_path, str(k), ["object=random", f"object.seed={1000 + k}"], metrics)
+        write_maps_picture(tmp_path / str(k) / "material_maps.png", colour)
+    # A job without its picture (a run stopped before its maps) is left out, not drawn blank.
+    metrics = map_metrics({f: 0.9 for f in FINGERS}, final=60.0)
+    write_job(tmp_path, "3", ["object=random", "object.seed=1003"], metrics)
+    written = plot_experiment(summarize(tmp_path), tmp_path)
+    grid = tmp_path / "maps_grid.png"
+    assert grid in written
+    pixels = assert_png(grid, min_width=600, min_height=300).astype(int)
+    for colour in colours:  # every job's picture is in the grid
+        target = (np.asarray(colour) * 0.75 * 255).astype(int)
+        assert (np.abs(pixels - target).max(axis=-1) < 12).any(), colour
+    # The tiles are titled with the setting, the mean-class matching and the majority map's.
+    metrics = {
+        "matching_mean_class_pct": 71.0,
+        "baseline_majority": {"matching_mean_class_pct": 50},
+    }
+    assert tile_title("seed=1001", metrics) == "seed=1001: mean-class 71.0% (majority 50.0%)"
+    assert tile_title("seed=1003", {}) == "seed=1003"
