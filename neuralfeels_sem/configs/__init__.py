@@ -94,3 +94,7 @@ def validate_config(cfg: DictConfig) -> None:
     except (ValueError, OmegaConfBaseException) as exc:
         msg = str(exc).strip().splitlines()[0]
         raise ConfigError(f"invalid config: {msg}") from exc
+    # A `+key=value` addition is composed into a typed node without complaint.
+    from neuralfeels_sem.configs.known_keys import check_known_keys
+
+    check_known_keys(cfg)

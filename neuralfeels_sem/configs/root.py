@@ -5,6 +5,7 @@ from __future__ import annotations
 from dataclasses import dataclass, field
 from typing import Any
 
+from neuralfeels_sem.core.limits import check_seed
 from neuralfeels_sem.core.materials import DEFAULT_MATERIALS
 
 
@@ -27,8 +28,7 @@ class RootConfig:
     dataset: Any = None
 
     def __post_init__(self) -> None:
-        if self.seed < 0:
-            raise ValueError(f"seed={self.seed} must be >= 0")
+        check_seed(self.seed)
         if len(self.materials) < 2:
             raise ValueError(f"materials={self.materials} needs at least two classes")
         if len(set(self.materials)) != len(self.materials):

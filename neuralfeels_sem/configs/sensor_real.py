@@ -9,6 +9,7 @@ from dataclasses import dataclass, field
 from typing import Any
 
 from neuralfeels_sem.core.hand import FINGERS
+from neuralfeels_sem.core.limits import check_duration
 from neuralfeels_sem.sensors.real.hand_kinematics import kinematics_target
 from neuralfeels_sem.sensors.replay.damage import DAMAGE_POLICIES
 
@@ -177,8 +178,7 @@ class RealSensorConfig:
     )  # until markers or the tracker say otherwise
 
     def __post_init__(self) -> None:
-        if self.duration_s <= 0:
-            raise ValueError(f"sensor.duration_s={self.duration_s} must be > 0")
+        check_duration("sensor.duration_s", self.duration_s)
         if self.fps <= 0:
             raise ValueError(f"sensor.fps={self.fps} must be > 0")
         _check_pose("sensor.world_T_palm", self.world_T_palm)
@@ -221,8 +221,7 @@ class RecordTaskConfig:
     feelsight: bool = False  # also export the FeelSight layout to <out>_feelsight
 
     def __post_init__(self) -> None:
-        if self.duration_s is not None and self.duration_s <= 0:
-            raise ValueError(f"task.duration_s={self.duration_s} must be > 0")
+        check_duration("task.duration_s", self.duration_s)
         if self.max_frames is not None and self.max_frames < 1:
             raise ValueError(f"task.max_frames={self.max_frames} must be >= 1")
 

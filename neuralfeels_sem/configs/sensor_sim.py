@@ -7,6 +7,7 @@ from dataclasses import dataclass, field
 from neuralfeels_sem.configs.object import TACTILE_DATA_OBJECTS
 from neuralfeels_sem.core.digit import MAX_PENETRATION_M
 from neuralfeels_sem.core.hand import FINGERS
+from neuralfeels_sem.core.limits import check_duration
 from neuralfeels_sem.sim.depth_noise import DEPTH_NOISE_MODELS, RealSenseNoiseConfig
 
 
@@ -95,8 +96,7 @@ class SimSensorConfig:
     rgbd: SimRgbdConfig = field(default_factory=SimRgbdConfig)
 
     def __post_init__(self) -> None:
-        if self.duration_s <= 0:
-            raise ValueError(f"sensor.duration_s={self.duration_s} must be > 0")
+        check_duration("sensor.duration_s", self.duration_s)
         if self.fps <= 0:
             raise ValueError(f"sensor.fps={self.fps} must be > 0")
         if not self.fingers or any(f not in FINGERS for f in self.fingers):
@@ -171,8 +171,7 @@ class CollectTactileTaskConfig:
     def __post_init__(self) -> None:
         if self.max_images < 1:
             raise ValueError(f"task.max_images={self.max_images} must be >= 1")
-        if self.duration_s is not None and self.duration_s <= 0:
-            raise ValueError(f"task.duration_s={self.duration_s} must be > 0 or null")
+        check_duration("task.duration_s", self.duration_s)
         if self.min_change < 0:
             raise ValueError(f"task.min_change={self.min_change} must be >= 0 (0 keeps duplicates)")
         if self.samples_per_class_per_sensor < 1:

@@ -14,6 +14,7 @@ import numpy as np
 import trimesh
 
 from neuralfeels_sem.core.errors import ConfigError, DataError
+from neuralfeels_sem.core.limits import MUJOCO_MAX_FACES
 from neuralfeels_sem.objects.label_files import read_labels
 from neuralfeels_sem.objects.material_object import MaterialObject
 from neuralfeels_sem.objects.materials import class_index, mass_and_friction
@@ -28,9 +29,12 @@ HAND_SIZE_M = (0.05, 0.12)  # largest extent a hand of this size can turn
 def resolve_path(path: str | Path, key: str) -> Path:
     """An existing file: absolute, or relative to the working directory, then the repository."""
     path = Path(path).expanduser()
-    for candidate in (path,) if path.is_absolute() else (Path.cwd() / path, REPO_DIR / path):
+    candidates = (path,) if path.is_absolute() else (Path.cwd() / path, REPO_DIR / path)
+    for candidate in candidates:
         if candidate.is_file():
             return candidate
+    if any(candidate.is_dir() for candidate in candidates):
+        raise DataError(f"{key}={path} is a directory: give the path of a file inside it")
     raise DataError(f"{key}={path} does not exist: give the path of an existing file")
 
 
@@ -51,13 +55,29 @@ def read_mesh(path: Path) -> trimesh.Trimesh:
         # maintain_order keeps an obj's faces in file order (labels follow it).
         loaded = trimesh.load(path, force="mesh", process=False, maintain_order=True)
     except Exception as exc:  # trimesh raises many types for malformed files
-        reason = (str(exc).strip().splitlines() or [""])[0]
-        raise DataError(
-            f"object.mesh={path} is unreadable ({type(exc).__name__}: {reason}): re-export it"
-        ) from exc
+        reason = f"{type(exc).__name__}: {(str(exc).strip().splitlines() or [''])[0]}"
+        if isinstance(exc, ImportError):
+            # trimesh falls back to decoding unknown bytes as text with an optional module
+            reason = f"not a binary or text {path.suffix.lower()[1:]} file"
+        raise DataError(f"object.mesh={path} is unreadable ({reason}): re-export it") from exc
     if not isinstance(loaded, trimesh.Trimesh) or len(loaded.faces) == 0:
         raise DataError(f"object.mesh={path} holds no triangles: export a triangle mesh")
+    check_mesh_size(path, np.asarray(loaded.vertices), len(loaded.faces))
     return trimesh.Trimesh(np.asarray(loaded.vertices), np.asarray(loaded.faces), process=False)
+
+
+def check_mesh_size(path: Path, vertices: np.ndarray, num_faces: int) -> None:
+    """Refuse NaN or infinite vertices and more faces than MuJoCo compiles, in one line."""
+    bad = int((~np.isfinite(vertices)).any(axis=1).sum()) if len(vertices) else 0
+    if bad:
+        raise DataError(
+            f"object.mesh={path} has {bad} vertices that are NaN or infinite: repair or re-export it"
+        )
+    if num_faces > MUJOCO_MAX_FACES:
+        raise DataError(
+            f"object.mesh={path} has {num_faces} faces, more than MuJoCo's {MUJOCO_MAX_FACES}: "
+            "decimate it first (e.g. MeshLab's quadric edge collapse to 50000 faces)"
+        )
 
 
 def clean_mesh(

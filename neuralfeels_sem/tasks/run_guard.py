@@ -1,6 +1,9 @@
-"""Hydra callback guarding a task=map run's directory, run before Hydra writes into it.
+"""Hydra callback guarding a run's inputs and a task=map run's directory, run before Hydra
+writes into it.
 
 Within seconds of start, before the simulator or the classifier is built:
+- for every task, the config's ranges and keys and the files it names
+  (configs.validate_config, tasks/preflight.py);
 - `mapping.resume` must name a readable checkpoint of the same object (name and content
   hash), sensor, classes and model as this run (mapping/provenance.py);
 - the run directory must be new or empty, unless the run resumes the checkpoint that
@@ -29,6 +32,7 @@ from neuralfeels_sem.core.errors import ConfigError, UserError
 from neuralfeels_sem.mapping.checkpoint import read_provenance
 from neuralfeels_sem.mapping.provenance import Provenance, check_provenance, object_hash
 from neuralfeels_sem.tasks.build import model_config
+from neuralfeels_sem.tasks.preflight import preflight
 from neuralfeels_sem.utils.run_lock import LOCK_NAME, RunLock
 
 
@@ -95,14 +99,15 @@ class RunDirectoryGuard(Callback):
         self.lock: RunLock | None = None
 
     def on_run_start(self, config: DictConfig, **kwargs: Any) -> None:
-        if config.task.get("name") != "map":
-            return
         run_dir = Path(str(config.hydra.run.dir))
         task_cfg = copy.deepcopy(config)  # what the task will see: no `hydra` node
         with read_write(task_cfg), open_dict(task_cfg):
             del task_cfg["hydra"]
         try:
             validate_config(task_cfg)
+            preflight(task_cfg)  # every task: files named, memory, ignored settings
+            if config.task.get("name") != "map":
+                return
             check_resume(task_cfg)
             check_run_dir(run_dir, task_cfg.mapping.resume)
             self.lock = lock_run_dir(run_dir)
