@@ -40,7 +40,15 @@ MIN_LABELLED_SHARE = 0.6  # of the surface area inside the regions of interest
 MAX_SUB_SEEDS = 50
 TARGET_FACES = 20_000  # as the shipped objects (the 1 mm tactile renderer sees smooth geometry)
 _DRAW_BOX_M = 0.2  # families draw inside +-this box before scaling
-_GENERATOR_SOURCES = ("random_object.py", "random_shapes.py", "random_layouts.py", "sdf.py")
+# The cache key hashes these (procedural.py: the seam and resting-face widths).
+_GENERATOR_SOURCES = (
+    "random_object.py",
+    "random_shapes.py",
+    "random_layouts.py",
+    "sdf.py",
+    "regions.py",
+    "procedural.py",
+)
 
 
 @dataclass
@@ -136,9 +144,7 @@ _CACHE_KEYS = ("vertices", "faces", "names", "record")
 @functools.cache
 def _generate(seed: int, family: str, pool: tuple[str, ...]) -> tuple:
     """`build_arrays`, cached in-process and on disk (data/objects/), read-only arrays."""
-    path = disk_cache.entry_path(
-        f"random-{seed}-{family}-{'_'.join(pool)}", _GENERATOR_SOURCES + ("regions.py",)
-    )
+    path = disk_cache.entry_path(f"random-{seed}-{family}-{'_'.join(pool)}", _GENERATOR_SOURCES)
     cached = disk_cache.load(path, _CACHE_KEYS)
     if cached is not None:
         arrays = (cached["vertices"], cached["faces"], cached["names"])
