@@ -103,14 +103,12 @@ def check_recording(cfg: DictConfig) -> None:
         recording = Path(str(cfg.sensor.recording or "")).expanduser()
         if cfg.sensor.recording and recording.is_dir() and (recording / "data.pkl").is_file():
             return  # its depth stack is large: read once, by the run itself
-    sensor = ReplaySensor(
+    ReplaySensor(
         recording=cfg.sensor.recording,
         format=cfg.sensor.format,
         camera=cfg.sensor.camera,
         class_names=list(cfg.materials),
-    )
-    sensor.open()
-    sensor.close()
+    ).read_recording()  # no warnings here: the run reports the recording's damage once
 
 
 def check_checkpoints(cfg: DictConfig) -> None:

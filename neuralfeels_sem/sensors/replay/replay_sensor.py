@@ -55,6 +55,16 @@ class ReplaySensor(Sensor):
         self._reader = None
 
     def open(self) -> None:
+        self._reader = self.read_recording()
+        path = self._reader.path
+        self.frame_period_s = self._reader.frame_period_s
+        self.damage = DamageLog(path, self.on_damaged_frame)
+        self.damage.note_tail(self._reader.tail_dropped)
+        log.info("replaying %d frames from %s (%s)", len(self), path, self.format)
+
+    def read_recording(self):
+        """The recording's reader (meta.json and frame records read, files not yet);
+        one-line errors for a missing, empty or differently labelled recording."""
         if not self.recording:
             raise ConfigError("sensor=replay needs a recording: set sensor.recording=PATH")
         path = Path(self.recording).expanduser()
@@ -63,22 +73,19 @@ class ReplaySensor(Sensor):
         if self.format == "feelsight":
             from neuralfeels_sem.sensors.replay.feelsight import FeelSightReader
 
-            self._reader = FeelSightReader(path, camera=self.camera)
+            reader = FeelSightReader(path, camera=self.camera)
         else:
             from neuralfeels_sem.sensors.replay.recording import RecordingReader
 
-            self._reader = RecordingReader(path)
-        if len(self._reader) == 0:
+            reader = RecordingReader(path)
+        if len(reader) == 0:
             raise DataError(f"recording {path} holds no frames: record again or pick another")
-        recorded = self._reader.class_names
+        recorded = reader.class_names
         if self.class_names is not None and recorded is not None and recorded != self.class_names:
             raise ConfigError(
                 f"recording {path} labels ground truth with materials={recorded}: run with the same materials"
             )
-        self.frame_period_s = self._reader.frame_period_s
-        self.damage = DamageLog(path, self.on_damaged_frame)
-        self.damage.note_tail(self._reader.tail_dropped)
-        log.info("replaying %d frames from %s (%s)", len(self), path, self.format)
+        return reader
 
     def __len__(self) -> int:
         if self._reader is None:
