@@ -5,17 +5,22 @@ recording itself is never changed by replaying it."""
 
 from __future__ import annotations
 
+import json
 import logging
+import re
 import shutil
 from collections.abc import Callable
 from pathlib import Path
 
 import pytest
+from hydra.utils import instantiate
 
 from neuralfeels_sem.core.errors import DataError
+from neuralfeels_sem.sensors.factory import build_sensor
 from neuralfeels_sem.sensors.replay.feelsight import export_feelsight
 from neuralfeels_sem.sensors.replay.recording import RecordingWriter
 from neuralfeels_sem.sensors.replay.replay_sensor import ReplaySensor
+from tests.helpers import compose_config, run_cli
 from tests.reliability.checks import tree_digest
 from tests.sensors.replay.synthetic_frames import make_frames
 
@@ -224,3 +229,74 @@ def test_a_damaged_recording_file_is_one_line(pristine, tmp_path, case: str) -> 
     for word in words:
         assert word in str(caught.value), (word, str(caught.value))
     assert tree_digest(recording) == before
+
+
+@pytest.fixture(scope="module")
+def sim_recording(tmp_path_factory) -> Path:
+    """Six small sim frames (ground truth kept) recorded as task=record writes them."""
+    cfg = compose_config(SIM)
+    sensor = build_sensor(cfg.sensor, instantiate(cfg.object), list(cfg.materials))
+    path = tmp_path_factory.mktemp("sim") / "recording"
+    with sensor, RecordingWriter(path, list(cfg.materials), sensor.frame_period_s) as writer:
+        for frame in sensor.frames():
+            writer.write(frame)
+    return path
+
+
+SIM = [
+    "sensor.rgbd.width=160",
+    "sensor.rgbd.height=120",
+    "sensor.duration_s=1.2",
+    "sensor.fps=5",
+]
+SMALL_MAP = [
+    "mapping.mapper.camera_mask=gt",
+    "mapping.mapper.tactile_depth.source=gt",
+    "classifier=oracle",
+    "mapping.mapper.warmup_steps=20",
+    "mapping.mapper.steps_per_frame=3",
+    "mapping.checkpoint_every=0",
+    "eval.every_k_frames=3",
+    "eval.num_surface_samples=2000",
+    "eval.image_views=2",
+    "eval.image_size=64",
+    "eval.mesh_resolution=48",
+    "eval.shape_samples=2000",
+    "viz.plots=false",
+]
+
+
+@pytest.mark.slow
+@pytest.mark.parametrize("policy", ["skip", "stop"])
+def test_a_map_run_over_a_damaged_recording(sim_recording, tmp_path, policy: str) -> None:
+    """skip: exit 0, one warning naming the frame, metrics.json counts it; stop: exit 2
+    in one line. The recording is unchanged either way."""
+    recording = Path(shutil.copytree(sim_recording, tmp_path / "recording"))
+    _line(recording / "frames.jsonl", 2, "{damaged")
+    before = tree_digest(recording)
+    run_dir = tmp_path / "run"
+    args = [
+        *SMALL_MAP,
+        "sensor=replay",
+        f"sensor.recording={recording}",
+        f"sensor.on_damaged_frame={policy}",
+        f"hydra.run.dir={run_dir}",
+    ]
+    result = run_cli(args, timeout=600)
+    assert tree_digest(recording) == before
+    if policy == "stop":
+        # The progress bar shares stderr: every other segment of it is the bar's.
+        segments = [s for s in re.split(r"[\r\n]", result.stderr) if s.strip()]
+        errors = [s[s.index("error:") :] for s in segments if "error:" in s]
+        assert result.returncode == 2 and "Traceback" not in result.stderr
+        assert len(errors) == 1 and all(s.startswith("map:") for s in segments if "error:" not in s)
+        assert "frame 2: frames.jsonl" in errors[0] and "on_damaged_frame=skip" in errors[0]
+        return
+    assert result.returncode == 0, result.stderr[-2000:]
+    output = result.stdout + result.stderr
+    assert "Traceback" not in output
+    assert output.count("skipping damaged frame") == 1 and "frame 2: frames.jsonl" in output
+    metrics = json.loads((run_dir / "metrics.json").read_text())
+    assert metrics["replay"]["frames_skipped"] == 1
+    assert metrics["replay"]["damaged"][0]["index"] == 2
+    assert metrics["frames_total"] == 6  # the frames after the damaged line were mapped
