@@ -177,7 +177,8 @@ def _material_pool(materials: Sequence[str] | None, class_names: tuple[str, ...]
         )
     if len(set(pool)) < 2:
         raise ConfigError(
-            f"object.materials={list(pool)} needs at least two different materials to lay out"
+            f"object=random needs at least two different materials to lay out, got {list(pool)}: "
+            "list two or more in object.materials (null: every class in materials)"
         )
     return tuple(dict.fromkeys(pool))  # drop repeats, keep the order (the draw depends on it)
 
