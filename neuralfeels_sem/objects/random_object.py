@@ -86,10 +86,8 @@ def problems(mesh: trimesh.Trimesh, names: np.ndarray, materials: Sequence[str])
     size = float(mesh.extents.max())
     if not SIZE_RANGE_M[0] <= size <= SIZE_RANGE_M[1]:
         found.append(f"largest extent {100 * size:.1f} cm outside {SIZE_RANGE_M} m")
-    area = np.bincount(
-        np.unique(names, return_inverse=True)[1].reshape(-1), weights=mesh.area_faces
-    )
-    present = dict(zip(np.unique(names), area))
+    unique, inverse = np.unique(names, return_inverse=True)
+    present = dict(zip(unique, np.bincount(inverse.reshape(-1), weights=mesh.area_faces)))
     missing = [m for m in materials if present.get(m, 0.0) < MIN_PATCH_AREA_M2]
     if missing:
         found.append(f"material {missing} missing or below {1e4 * MIN_PATCH_AREA_M2:.0f} cm^2")
