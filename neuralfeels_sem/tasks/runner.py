@@ -27,6 +27,7 @@ from omegaconf import DictConfig
 from neuralfeels_sem.configs import validate_config
 from neuralfeels_sem.core.errors import UserError
 from neuralfeels_sem.pipeline.interrupts import Interrupted
+from neuralfeels_sem.tasks.preflight import preflight
 from neuralfeels_sem.utils.seed import seed_everything
 
 log = logging.getLogger(__name__)
@@ -86,6 +87,8 @@ def run_task(cfg: DictConfig) -> float | None:
     try:
         try:
             validate_config(cfg)
+            if _is_multirun():  # a single run was checked by tasks/run_guard.py already
+                preflight(cfg)
             seed_everything(int(cfg.seed))
             task = get_method(cfg.task._target_)
             result = task(cfg)

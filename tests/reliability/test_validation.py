@@ -227,3 +227,20 @@ def test_command_line_refusal(tmp_path: Path, case: str) -> None:
     result = run_cli([*args, f"hydra.run.dir={run_dir}"], timeout=120)
     assert_refused(result, 2, *words)
     assert not run_dir.exists()
+
+
+@pytest.mark.slow
+def test_a_sweep_job_refused_by_preflight_writes_error_txt(tmp_path: Path) -> None:
+    """In a sweep the same checks run per job (tasks/runner.py): each refused job leaves
+    its one line in error.txt and the sweep goes on to the end."""
+    sweep = tmp_path / "sweep"
+    result = run_cli(
+        ["-m", "task=info", "classifier.weights=a.pth,b.pth", f"hydra.sweep.dir={sweep}"],
+        timeout=300,
+    )
+    assert "Traceback" not in result.stderr + result.stdout
+    errors = sorted(sweep.glob("*/error.txt"))
+    assert len(errors) == 2
+    for path in errors:
+        lines = path.read_text().splitlines()
+        assert len(lines) == 1 and "task=info would ignore it" in lines[0]
