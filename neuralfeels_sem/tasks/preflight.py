@@ -101,8 +101,15 @@ def check_recording(cfg: DictConfig) -> None:
 
     if cfg.sensor.format == "feelsight":
         recording = Path(str(cfg.sensor.recording or "")).expanduser()
-        if cfg.sensor.recording and recording.is_dir() and (recording / "data.pkl").is_file():
-            return  # its depth stack is large: read once, by the run itself
+        depth = recording / "realsense" / str(cfg.sensor.camera) / "depth.npz"
+        if cfg.sensor.recording and (recording / "data.pkl").is_file():
+            # its depth stack is large: read once, by the run itself
+            if not depth.is_file():
+                raise DataError(
+                    f"FeelSight log depth {depth} is missing: restore it, or pick the camera "
+                    "it has with sensor.camera"
+                )
+            return
     ReplaySensor(
         recording=cfg.sensor.recording,
         format=cfg.sensor.format,

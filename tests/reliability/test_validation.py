@@ -51,6 +51,10 @@ CONFIG_CASES: dict[str, tuple[list[str], list[str]]] = {
     "seed_beyond_64_bits": (["seed=18446744073709551616"], ["seed=18446744073709551616"]),
     "seed_beyond_32_bits": (["seed=4294967296"], ["seed=4294967296", "2^32 - 1"]),
     "seed_negative": (["seed=-1"], ["seed=-1"]),
+    "on_damaged_frame_unknown": (
+        ["sensor=replay", "sensor.on_damaged_frame=ignore"],
+        ["sensor.on_damaged_frame='ignore'", "skip or stop"],
+    ),
 }
 
 
@@ -92,6 +96,12 @@ def _garbage(tmp: Path, name: str) -> str:
     return str(tmp / name)
 
 
+def _feelsight_without_depth(tmp: Path) -> str:
+    """A FeelSight log folder holding data.pkl but no realsense/<camera>/depth.npz."""
+    _garbage(tmp, "data.pkl")
+    return str(tmp)
+
+
 def _recording_with_truncated_meta(tmp: Path) -> str:
     (tmp / "rec").mkdir()
     (tmp / "rec" / "meta.json").write_text('{"schema_version": 1, "clas')
@@ -120,6 +130,14 @@ PREFLIGHT_CASES: dict[str, Callable[[Path], tuple[list[str], list[str]]]] = {
     "feelsight_log_missing": lambda t: (
         ["sensor=replay", "sensor.format=feelsight", f"sensor.recording={t}"],
         ["is not a FeelSight log"],
+    ),
+    "feelsight_depth_missing": lambda t: (
+        [
+            "sensor=replay",
+            "sensor.format=feelsight",
+            f"sensor.recording={_feelsight_without_depth(t)}",
+        ],
+        ["realsense/front-left/depth.npz is missing", "sensor.camera"],
     ),
     "classifier_checkpoint_missing": lambda t: (
         [f"classifier.checkpoint={t / 'nope.pt'}"],
