@@ -24,9 +24,7 @@ from neuralfeels_sem.core.errors import ConfigError, DataError
 TASKS_READING_WEIGHTS = ("train_classifier", "classifier_experiment")
 # Tasks that build the semantic field (its hash table).
 TASKS_BUILDING_A_FIELD = ("map",)
-# The table, Adam's two moments and (unless model.encoding.sparse_grad) a dense
-# gradient: float32 copies of the table while training (fields/optim.py FieldAdam).
-FLOAT_BYTES = 4
+FLOAT_BYTES = 4  # the table is float32
 
 
 def preflight(cfg: DictConfig) -> None:
@@ -59,6 +57,8 @@ def hash_table_bytes(encoding: DictConfig, log2_table_size: int | None = None) -
     for level in range(int(encoding.num_levels)):
         resolution = math.floor(encoding.base_resolution * encoding.per_level_scale**level)
         rows += min((resolution + 1) ** 3, table)
+    # The table and Adam's two moments, plus a dense gradient unless the gradient is
+    # row-sparse (model.encoding.sparse_grad; fields/optim.py FieldAdam).
     copies = 3 if encoding.get("sparse_grad", True) else 4
     return rows * int(encoding.features_per_level) * FLOAT_BYTES * copies
 
@@ -74,11 +74,28 @@ def available_memory_bytes() -> int | None:
     return None
 
 
+def field_memory(device: str) -> tuple[int | None, str]:
+    """Free bytes where the field will live, and its name: the GPU's for a CUDA device
+    (`device`, as configured), else the machine's memory."""
+    if device == "cpu":
+        return available_memory_bytes(), "memory"
+    import torch
+
+    if not torch.cuda.is_available():
+        return available_memory_bytes(), "memory"
+    index = torch.device("cuda" if device == "auto" else device).index
+    free, _ = torch.cuda.mem_get_info(index if index is not None else 0)
+    return int(free), "GPU memory"
+
+
 def check_table_memory(cfg: DictConfig, available: int | None = None) -> None:
-    """Refuse a hash table (with its training state) larger than the available memory."""
+    """Refuse a hash table (with its training state) larger than the free memory of the
+    device the field lives on (`available` bytes when given)."""
     if str(cfg.task.get("name")) not in TASKS_BUILDING_A_FIELD or "encoding" not in cfg.model:
         return
-    available = available_memory_bytes() if available is None else available
+    where = "memory"
+    if available is None:
+        available, where = field_memory(str(cfg.get("device", "auto")))
     need = hash_table_bytes(cfg.model.encoding)
     if available is None or need <= available:
         return
@@ -88,7 +105,7 @@ def check_table_memory(cfg: DictConfig, available: int | None = None) -> None:
         fits -= 1
     raise ConfigError(
         f"model.encoding.log2_table_size={size} needs {need / 1e9:.1f} GB for the hash table "
-        f"and its training state, but {available / 1e9:.1f} GB of memory is available; "
+        f"and its training state, but {available / 1e9:.1f} GB of {where} is available; "
         f"use model.encoding.log2_table_size={fits} or less"
     )
 
