@@ -199,6 +199,11 @@ WHOLE_FILE = {
         lambda d: (d / "meta.json").write_text("[1, 2]"),
         ["meta.json is not a JSON object"],
     ),
+    "meta_json_without_frame_period": (
+        "native",
+        lambda d: (d / "meta.json").write_text('{"schema_version": 1}'),
+        ["meta.json has no valid frame_period_s"],
+    ),
     "feelsight_data_pkl_truncated": (
         "feelsight",
         lambda d: _truncate(d / "data.pkl"),

@@ -300,7 +300,13 @@ class RecordingReader:
 
     @property
     def frame_period_s(self) -> float:
-        return float(self.meta["frame_period_s"])
+        period = self.meta.get("frame_period_s")
+        if not isinstance(period, (int, float)) or not period > 0:
+            raise DataError(
+                f"recording {self.path / 'meta.json'} has no valid frame_period_s ({period!r}); "
+                "restore it or record again"
+            )
+        return float(period)
 
     def _background(self, finger: str) -> np.ndarray | None:
         if finger not in self._backgrounds:
