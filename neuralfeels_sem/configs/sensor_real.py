@@ -9,7 +9,7 @@ from dataclasses import dataclass, field
 from typing import Any
 
 from neuralfeels_sem.core.hand import FINGERS
-from neuralfeels_sem.core.limits import check_duration
+from neuralfeels_sem.core.limits import check_duration, check_rate
 from neuralfeels_sem.sensors.real.hand_kinematics import kinematics_target
 from neuralfeels_sem.sensors.replay.damage import DAMAGE_POLICIES
 
@@ -179,8 +179,7 @@ class RealSensorConfig:
 
     def __post_init__(self) -> None:
         check_duration("sensor.duration_s", self.duration_s)
-        if self.fps <= 0:
-            raise ValueError(f"sensor.fps={self.fps} must be > 0")
+        check_rate("sensor.fps", self.fps)
         _check_pose("sensor.world_T_palm", self.world_T_palm)
         _check_pose("sensor.world_T_object", self.world_T_object)
 

@@ -7,7 +7,7 @@ from dataclasses import dataclass, field
 from neuralfeels_sem.configs.object import TACTILE_DATA_OBJECTS
 from neuralfeels_sem.core.digit import MAX_PENETRATION_M
 from neuralfeels_sem.core.hand import FINGERS
-from neuralfeels_sem.core.limits import check_duration
+from neuralfeels_sem.core.limits import check_duration, check_rate
 from neuralfeels_sem.sim.depth_noise import DEPTH_NOISE_MODELS, RealSenseNoiseConfig
 
 
@@ -97,8 +97,7 @@ class SimSensorConfig:
 
     def __post_init__(self) -> None:
         check_duration("sensor.duration_s", self.duration_s)
-        if self.fps <= 0:
-            raise ValueError(f"sensor.fps={self.fps} must be > 0")
+        check_rate("sensor.fps", self.fps)
         if not self.fingers or any(f not in FINGERS for f in self.fingers):
             raise ValueError(
                 f"sensor.fingers={self.fingers} must be a non-empty subset of {list(FINGERS)}"
