@@ -82,6 +82,14 @@ def _on_signals() -> None:
         signal.signal(signal.SIGTERM, _terminate)
 
 
+def _close_progress_bars() -> None:
+    """End any progress bar a failing loop left open, so the error gets a line of its own."""
+    from tqdm import tqdm
+
+    for bar in list(getattr(tqdm, "_instances", ())):
+        bar.close()
+
+
 def run_task(cfg: DictConfig) -> float | None:
     _on_signals()
     try:
@@ -103,6 +111,7 @@ def run_task(cfg: DictConfig) -> float | None:
         if _is_multirun():
             (output_dir() / "error.txt").write_text(f"{type(exc).__name__}: {exc}\n")
             return None
+        _close_progress_bars()
         print(f"error: {exc}", file=sys.stderr)
         sys.exit(exc.exit_code)
     except Interrupted as exc:
