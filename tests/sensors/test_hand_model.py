@@ -40,6 +40,13 @@ def test_real_hand_model_is_the_configured_kinematics() -> None:
             assert len(model.link_meshes(np.zeros(16))) > 16
 
 
-def test_replay_knows_no_hand() -> None:
-    # A recording stores joint angles but not the hand's description.
-    assert ReplaySensor(recording="any_recording").hand_model() is None
+def test_replay_of_a_recording_without_a_hand_model_has_none(tmp_path) -> None:
+    # A recording written without a hand model (hand_model: null in meta.json); the
+    # replay of one with a model is tests/sensors/replay/test_stripped_replay.py.
+    from neuralfeels_sem.sensors.replay.recording import RecordingWriter
+    from tests.sensors.replay.synthetic_frames import make_frames
+
+    with RecordingWriter(tmp_path / "rec", workers=0) as writer:
+        for frame in make_frames(2, seed=3):
+            writer.write(frame)
+    assert ReplaySensor(recording=str(tmp_path / "rec")).hand_model() is None
