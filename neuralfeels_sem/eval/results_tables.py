@@ -256,7 +256,16 @@ def perception_table(runs: Sequence[Run]) -> list[str]:
     """Per object and oracles: how well perception matched the simulator's ground truth."""
     rows = []
     for (obj, oracles), members in by_object_and_oracles(runs).items():
-        cells = [mean_std(values_of(members, key), digits) for key, _, digits in PERCEPTION_KEYS]
+        # Camera figures only where the run segmented: with the simulator's mask nothing
+        # was segmented, so no frame could be skipped either.
+        segmented = [r for r in members if get(r.metrics, "perception.camera_mask") == "segment"]
+        cells = [
+            mean_std(
+                values_of(segmented if key.startswith("perception.camera") else members, key),
+                digits,
+            )
+            for key, _, digits in PERCEPTION_KEYS
+        ]
         if any(c != "n/a" for c in cells):
             rows.append([f"`{obj}`", oracles, str(len(members)), *cells])
     header = ["object", "oracles", "runs"] + [name for _, name, _ in PERCEPTION_KEYS]

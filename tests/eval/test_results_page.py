@@ -227,7 +227,12 @@ def test_runs_with_other_oracles_get_their_own_row_and_a_perception_table(
     sweep = tmp_path / "perception"
     for k, (oracles, value) in enumerate(((["object_pose"], 90.0), ([], 80.0))):
         metrics = run_metrics(value, 95.0, 50.0, 54.0, "plastic", oracles=oracles)
-        metrics["perception"] = {"camera_mask_iou": 0.9 + 0.01 * k, "tactile_depth_mae_mm": 0.2}
+        metrics["perception"] = {
+            "camera_mask": "gt" if oracles else "segment",
+            "camera_mask_iou": 0.9 + 0.01 * k,
+            "camera_frames_skipped": 0,
+            "tactile_depth_mae_mm": 0.2,
+        }
         preset = "perception=oracle_camera_mask" if oracles else "perception=realistic"
         write_job(sweep, str(k), ["object=patched_toy", "seed=0", preset], metrics)
     page = generate(tmp_path, sweep)
@@ -240,10 +245,12 @@ def test_runs_with_other_oracles_get_their_own_row_and_a_perception_table(
     assert rows[("`patched_toy`", "none")][2:] == [
         "1",
         "0.910 ± 0.000",
-        "n/a",
+        "0.0 ± 0.0",
         "n/a",
         "0.200 ± 0.000",
     ]
+    # With the simulator's mask nothing was segmented: no camera figures.
+    assert rows[("`patched_toy`", "pose")][3:5] == ["n/a", "n/a"]
 
 
 def test_single_run_oracles_come_from_its_config(tmp_path: Path) -> None:
