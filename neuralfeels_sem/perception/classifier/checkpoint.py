@@ -21,6 +21,7 @@ from torch import nn
 
 from neuralfeels_sem.core.errors import DataError
 from neuralfeels_sem.perception.classifier.model import ARCH, build_model
+from neuralfeels_sem.utils.payload_file import load_payload, save_payload
 
 FORMAT = "neuralfeels_sem.classifier/1"
 
@@ -66,28 +67,14 @@ def save_checkpoint(
         "std": [float(v) for v in std],
         "meta": dict(meta or {}),
     }
-    tmp = path.with_suffix(path.suffix + ".tmp")
-    torch.save(payload, tmp)
-    tmp.replace(path)  # never leave a half-written checkpoint behind
-    return path
+    return save_payload(payload, path)
 
 
 def load_checkpoint(path: str | Path) -> ClassifierCheckpoint:
     path = Path(path)
-    if not path.is_file():
-        raise DataError(
-            f"classifier checkpoint {path} does not exist; train one with task=train_classifier"
-        )
-    try:
-        payload = torch.load(path, map_location="cpu", weights_only=True)
-    except Exception as exc:
-        raise DataError(
-            f"classifier checkpoint {path} is not readable ({exc.__class__.__name__}); re-export it"
-        ) from exc
-    if not isinstance(payload, dict) or payload.get("format") != FORMAT:
-        raise DataError(
-            f"{path} is not a SemanticFeels classifier checkpoint (expected format {FORMAT})"
-        )
+    payload = load_payload(
+        path, "classifier checkpoint", FORMAT, "train one with task=train_classifier"
+    )
     if payload.get("arch") != ARCH:
         raise DataError(f"classifier checkpoint {path} is a {payload.get('arch')}, expected {ARCH}")
     return ClassifierCheckpoint(

@@ -19,6 +19,7 @@ import torch
 
 from neuralfeels_sem.core.errors import DataError
 from neuralfeels_sem.perception.tactile_depth_net.model import ARCH, TactileDepthNet, build_model
+from neuralfeels_sem.utils.payload_file import load_payload, save_payload
 
 FORMAT = "neuralfeels_sem.tactile_depth/1"
 
@@ -57,29 +58,14 @@ def save_checkpoint(
         "input_size": [int(v) for v in input_size],
         "meta": dict(meta or {}),
     }
-    tmp = path.with_suffix(path.suffix + ".tmp")
-    torch.save(payload, tmp)
-    tmp.replace(path)  # never leave a half-written checkpoint behind
-    return path
+    return save_payload(payload, path)
 
 
 def load_checkpoint(path: str | Path) -> DepthNetCheckpoint:
     path = Path(path)
-    if not path.is_file():
-        raise DataError(
-            f"tactile depth checkpoint {path} does not exist; train one with task=train_tactile_depth"
-        )
-    try:
-        payload = torch.load(path, map_location="cpu", weights_only=True)
-    except Exception as exc:
-        raise DataError(
-            f"tactile depth checkpoint {path} is not readable ({exc.__class__.__name__}); "
-            "retrain it with task=train_tactile_depth"
-        ) from exc
-    if not isinstance(payload, dict) or payload.get("format") != FORMAT:
-        raise DataError(
-            f"{path} is not a SemanticFeels tactile depth checkpoint (expected format {FORMAT})"
-        )
+    payload = load_payload(
+        path, "tactile depth checkpoint", FORMAT, "train one with task=train_tactile_depth"
+    )
     if payload.get("arch") != ARCH:
         raise DataError(
             f"tactile depth checkpoint {path} is a {payload.get('arch')}, expected {ARCH}"
