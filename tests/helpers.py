@@ -37,3 +37,18 @@ def run_cli(
         text=True,
         timeout=timeout,
     )
+
+
+# Mapping at toy size (seconds, not minutes): few steps, coarse scoring, no pictures.
+TOY_MAPPING = [
+    "mapping.mapper.warmup_steps=20",
+    "mapping.mapper.steps_per_frame=3",
+    "mapping.checkpoint_every=0",
+    "eval.every_k_frames=3",
+    "eval.num_surface_samples=2000",
+    "eval.image_views=2",
+    "eval.image_size=64",
+    "eval.mesh_resolution=48",
+    "eval.shape_samples=2000",
+    "viz.plots=false",
+]

@@ -20,7 +20,7 @@ from neuralfeels_sem.sensors.factory import build_sensor
 from neuralfeels_sem.sensors.replay.feelsight import export_feelsight
 from neuralfeels_sem.sensors.replay.recording import RecordingWriter
 from neuralfeels_sem.sensors.replay.replay_sensor import ReplaySensor
-from tests.helpers import compose_config, run_cli
+from tests.helpers import TOY_MAPPING, compose_config, run_cli
 from tests.reliability.checks import tree_digest
 from tests.sensors.replay.synthetic_frames import make_frames
 
@@ -258,16 +258,7 @@ SMALL_MAP = [
     "mapping.mapper.camera_mask=gt",
     "mapping.mapper.tactile_depth.source=gt",
     "classifier=oracle",
-    "mapping.mapper.warmup_steps=20",
-    "mapping.mapper.steps_per_frame=3",
-    "mapping.checkpoint_every=0",
-    "eval.every_k_frames=3",
-    "eval.num_surface_samples=2000",
-    "eval.image_views=2",
-    "eval.image_size=64",
-    "eval.mesh_resolution=48",
-    "eval.shape_samples=2000",
-    "viz.plots=false",
+    *TOY_MAPPING,
 ]
 
 

@@ -17,22 +17,10 @@ from neuralfeels_sem.sensors.factory import build_sensor
 from neuralfeels_sem.sensors.hand_spec import hand_model_spec
 from neuralfeels_sem.sensors.replay.recording import RecordingReader, RecordingWriter
 from neuralfeels_sem.tasks.map import map_object
-from tests.helpers import compose_config
+from tests.helpers import TOY_MAPPING, compose_config
 
 SIM = ["sensor.rgbd.width=160", "sensor.rgbd.height=120", "sensor.duration_s=1.2", "sensor.fps=5"]
-SMALL = [
-    "object=plushie",
-    "mapping.mapper.warmup_steps=20",
-    "mapping.mapper.steps_per_frame=3",
-    "mapping.checkpoint_every=0",
-    "eval.every_k_frames=3",
-    "eval.num_surface_samples=2000",
-    "eval.image_views=2",
-    "eval.image_size=64",
-    "eval.mesh_resolution=48",
-    "eval.shape_samples=2000",
-    "viz.plots=false",
-]
+SMALL = ["object=plushie", *TOY_MAPPING]
 
 
 def without_ground_truth(frame: Frame) -> Frame:
