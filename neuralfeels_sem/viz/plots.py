@@ -215,8 +215,10 @@ def plot_progression(
     path: Path | str,
     view: int = 0,
     dpi: int = 120,
+    title: str = "",
 ) -> Path:
-    """The predicted map from one view at several times, then the ground truth (figure 5C)."""
+    """The predicted map from one view at several times, then the ground truth (figure 5C);
+    `title` above them all (a partial run's mark)."""
     if not snapshots:
         raise ValueError("plot_progression needs at least one (time_s, maps) snapshot")
     for _, maps in snapshots:
@@ -239,6 +241,8 @@ def plot_progression(
     for ax in axes:
         ax.set_xticks([])
         ax.set_yticks([])
+    if title:
+        fig.suptitle(title, fontsize=10)
     fig.legend(
         handles=_legend_handles(class_names, False, np.concatenate(shown)),
         loc="outside lower center",

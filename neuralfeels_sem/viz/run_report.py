@@ -55,7 +55,13 @@ def write_pictures(
         pick = np.unique(
             np.linspace(0, len(snapshots) - 1, min(6, len(snapshots))).round().astype(int)
         )
-        plot_progression([snapshots[i] for i in pick], names, out / "progression.png", dpi=dpi)
+        plot_progression(
+            [snapshots[i] for i in pick],
+            names,
+            out / "progression.png",
+            dpi=dpi,
+            title=partial_mark(metrics).strip(),
+        )
         if "entropy" in snapshots[-1][1]:
             plot_uncertainty_map(
                 snapshots[-1][1],

@@ -106,6 +106,12 @@ def test_progression_png(tmp_path: Path) -> None:
     assert pixels.shape[1] > 2 * pixels.shape[0]  # one row: snapshots then ground truth
     with pytest.raises(ValueError):
         plot_progression([], CLASSES, tmp_path / "none.png")
+    # A partial run's mark is drawn above the row (same size, other pixels).
+    marked = plot_progression(
+        snapshots, CLASSES, tmp_path / "partial.png", title="PARTIAL (interrupted after frame 7)"
+    )
+    marked_pixels = assert_png(marked)
+    assert marked_pixels.shape == pixels.shape and not np.array_equal(marked_pixels, pixels)
 
 
 def test_fscore_curve_png(tmp_path: Path) -> None:
