@@ -104,6 +104,8 @@ def map_object(cfg: DictConfig, obj, sensor, out: Path) -> dict:
             "fingers": list(cfg.sensor.get("fingers", [])) if "fingers" in cfg.sensor else None,
             "seed": int(cfg.seed),
             "resumed_from": cfg.mapping.resume,
+            # A generated object (object=random): seed, sub-seed used, family, layout.
+            "object_generation": getattr(obj, "generation", None),
         },
     }
     write_metrics(metrics, out / "metrics.json")
