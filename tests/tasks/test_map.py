@@ -82,6 +82,7 @@ def test_map_writes_the_run_output_contract(tiny_run: Path) -> None:
         assert key in metrics, key
     assert metrics["frames"] == 8
     assert metrics["config"]["object"] == "plushie" and metrics["config"]["seed"] == 0
+    assert metrics["config"]["object_generation"] is None  # set for object=random only
     assert [row[0] for row in metrics["matching_curve"]] == [0, 2, 4, 6, 7]
     trained = metrics["trained_on"]
     assert trained["camera_points"] > 0 and trained["tactile_points"] > 0
