@@ -136,6 +136,23 @@ class PointExtractor:
         self._depths[reading.finger] = (frame_index, id(reading), depth)
         return depth
 
+    def state_dict(self) -> dict:
+        """The running perception figures (plain numbers), so a resumed run's figures cover
+        every segment."""
+        return {
+            "segmentation": dataclasses.asdict(self.stats),
+            "depth_counts": dataclasses.asdict(self.depth_counts),
+            "tactile_readings_scored": self.tactile_readings_scored,
+        }
+
+    def load_state_dict(self, state: dict | None) -> None:
+        """Restore `state_dict()`; None (a checkpoint written without it) starts afresh."""
+        if state is None:
+            return
+        self.stats = SegmentationStats(**state["segmentation"])
+        self.depth_counts = DepthCounts(**state["depth_counts"])
+        self.tactile_readings_scored = int(state["tactile_readings_scored"])
+
     def perception_summary(self) -> dict:
         """metrics.json["perception"]: how the perceived inputs compare with the simulator's
         ground truth (None where a source is the ground truth itself or none exists)."""

@@ -274,6 +274,7 @@ class OnlineMapper:
             **self.memory.state_dict(),
             "counters": self.log.state_dict(),
             "rng": capture_rng(self.generator),
+            "perception": self.points.state_dict(),
         }
 
     def load_state_dict(self, state: dict) -> None:
@@ -282,3 +283,4 @@ class OnlineMapper:
         self.memory.load_state_dict(state)
         self.log.load_state_dict(state["counters"])
         restore_rng(state["rng"], self.generator)
+        self.points.load_state_dict(state.get("perception"))

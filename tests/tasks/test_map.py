@@ -221,6 +221,8 @@ def test_resume_continues_from_the_checkpoint(tiny_run: Path, tmp_path: Path) ->
         p.name for p in (tmp_path / "progression").glob("*.npz")
     }
     assert metrics["trained_on"]["frames"] == 12
+    # The perception figures cover both segments too (restored from the checkpoint).
+    assert metrics["perception"]["camera_frames_segmented"] == 12
     assert metrics["matching_curve"][0][0] == 0 and metrics["matching_curve"][-1][0] == 11
     assert [r[0] for r in metrics["matching_mean_class_curve"]] == [
         r[0] for r in metrics["matching_curve"]
