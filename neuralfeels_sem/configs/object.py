@@ -23,15 +23,7 @@ SHIPPED_OBJECTS = (
 )
 # The objects whose touches are in the shipped classifier's training data (the default of
 # task=collect_tactile's library_objects): patchwork and kitchen_tool, added later, are not.
-TACTILE_DATA_OBJECTS = (
-    "plushie",
-    "patched_toy",
-    "fabric_toy",
-    "yarn_ball",
-    "candle_holder",
-    "powder_shaker",
-    "plastic_toy",
-)
+TACTILE_DATA_OBJECTS = tuple(o for o in SHIPPED_OBJECTS if o not in ("patchwork", "kitchen_tool"))
 
 
 @dataclass

@@ -20,9 +20,9 @@ def save_payload(payload: dict, path: str | Path) -> Path:
     return path
 
 
-def load_payload(path: str | Path, what: str, fmt: str, remedy: str) -> dict:
-    """The dict saved at `path` with `"format": fmt`; `what` names the file kind in errors
-    ("classifier checkpoint"), `remedy` says how to get a good one."""
+def load_payload(path: str | Path, what: str, fmt: str, arch: str, remedy: str) -> dict:
+    """The dict saved at `path` with `"format": fmt` and `"arch": arch`; `what` names the
+    file kind in errors ("classifier checkpoint"), `remedy` says how to get a good one."""
     path = Path(path)
     if not path.is_file():
         raise DataError(f"{what} {path} does not exist; {remedy}")
@@ -34,4 +34,6 @@ def load_payload(path: str | Path, what: str, fmt: str, remedy: str) -> dict:
         ) from exc
     if not isinstance(payload, dict) or payload.get("format") != fmt:
         raise DataError(f"{path} is not a SemanticFeels {what} (expected format {fmt})")
+    if payload.get("arch") != arch:
+        raise DataError(f"{what} {path} is a {payload.get('arch')}, expected {arch}")
     return payload

@@ -8,15 +8,11 @@ frames. The rig alone, no rendering: about 3 s per object.
 
 from __future__ import annotations
 
-from collections import Counter
-
-import numpy as np
 import pytest
 
-from neuralfeels_sem.configs.sensor_sim import SimSensorConfig
 from neuralfeels_sem.core.materials import DEFAULT_MATERIALS
 from neuralfeels_sem.objects.library import make_object
-from neuralfeels_sem.sim.rig import SimRig
+from tests.sim.touch_counts import touched_materials
 
 CLASSES = tuple(DEFAULT_MATERIALS)
 MATERIALS = {
@@ -27,16 +23,7 @@ MATERIALS = {
 
 @pytest.mark.parametrize("name", sorted(MATERIALS))
 def test_default_run_touches_every_material(name: str) -> None:
-    obj = make_object(name, CLASSES)
-    config = SimSensorConfig()
-    rig = SimRig(obj, seed=0, **config.rig_motion())
-    touched: Counter[str] = Counter()
-    for i in range(round(config.duration_s * config.fps)):
-        state = rig.state_at(i / config.fps)
-        points = [p for f, p in state.contact_point.items() if state.touching[f] and p is not None]
-        if points:
-            labels = obj.labels_at(np.asarray(points))
-            touched.update(CLASSES[k] if k >= 0 else "ignore" for k in labels)
+    touched, rig = touched_materials(make_object(name, CLASSES), CLASSES)
     # Measured (seed 0): patchwork 42-84 finger-frames per material, kitchen_tool 53-88.
     assert all(touched[m] >= 15 for m in MATERIALS[name]), touched
     assert touched.keys() <= MATERIALS[name] | {"ignore"}

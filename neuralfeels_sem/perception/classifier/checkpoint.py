@@ -19,7 +19,6 @@ from typing import Any
 import torch
 from torch import nn
 
-from neuralfeels_sem.core.errors import DataError
 from neuralfeels_sem.perception.classifier.model import ARCH, build_model
 from neuralfeels_sem.utils.payload_file import load_payload, save_payload
 
@@ -73,10 +72,8 @@ def save_checkpoint(
 def load_checkpoint(path: str | Path) -> ClassifierCheckpoint:
     path = Path(path)
     payload = load_payload(
-        path, "classifier checkpoint", FORMAT, "train one with task=train_classifier"
+        path, "classifier checkpoint", FORMAT, ARCH, "train one with task=train_classifier"
     )
-    if payload.get("arch") != ARCH:
-        raise DataError(f"classifier checkpoint {path} is a {payload.get('arch')}, expected {ARCH}")
     return ClassifierCheckpoint(
         state_dict=payload["state_dict"],
         class_names=list(payload["class_names"]),

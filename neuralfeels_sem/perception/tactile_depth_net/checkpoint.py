@@ -64,12 +64,8 @@ def save_checkpoint(
 def load_checkpoint(path: str | Path) -> DepthNetCheckpoint:
     path = Path(path)
     payload = load_payload(
-        path, "tactile depth checkpoint", FORMAT, "train one with task=train_tactile_depth"
+        path, "tactile depth checkpoint", FORMAT, ARCH, "train one with task=train_tactile_depth"
     )
-    if payload.get("arch") != ARCH:
-        raise DataError(
-            f"tactile depth checkpoint {path} is a {payload.get('arch')}, expected {ARCH}"
-        )
     size = payload.get("input_size")
     if not (isinstance(size, list) and len(size) == 2 and all(int(v) >= 16 for v in size)):
         raise DataError(
