@@ -8,8 +8,8 @@ import subprocess
 from pathlib import Path
 
 from neuralfeels_sem.mapping.checkpoint import save_checkpoint
-from neuralfeels_sem.mapping.provenance import Provenance, object_hash
-from neuralfeels_sem.tasks.build import model_config
+from neuralfeels_sem.mapping.provenance import Provenance
+from neuralfeels_sem.tasks.run_guard import run_provenance
 from tests.helpers import compose_config
 from tests.mapping.synthetic import small_mapper
 
@@ -41,14 +41,7 @@ def provenance_of(overrides: list[str]) -> Provenance:
     from hydra.utils import instantiate
 
     cfg = compose_config(overrides)
-    obj = instantiate(cfg.object)
-    return Provenance(
-        object_name=str(cfg.object.name),
-        object_hash=object_hash(obj),
-        sensor=str(cfg.sensor.name),
-        classes=tuple(cfg.materials),
-        model=model_config(cfg),
-    )
+    return run_provenance(cfg, instantiate(cfg.object))
 
 
 def write_run_dir(run_dir: Path, provenance: Provenance | None) -> Path:
