@@ -7,7 +7,7 @@ import dataclasses
 import numpy as np
 
 from neuralfeels_sem.core.digit import GEL_DISTANCE_M
-from neuralfeels_sem.core.frame import CameraReading, Frame, TactileReading
+from neuralfeels_sem.core.frame import CameraReading, Frame
 from neuralfeels_sem.perception.camera_segmentation import CameraSegmenter, SegmentationConfig
 from neuralfeels_sem.perception.pointcloud import camera_points, tactile_points
 from neuralfeels_sem.perception.segmentation_stats import SegmentationStats
@@ -66,9 +66,9 @@ class PointExtractor:
         self.worst_segmented: tuple[CameraReading, np.ndarray, float] | None = None
         self.depth_counts = DepthCounts()
         self.tactile_readings_scored = 0
-        # (frame index, finger) -> (reading id, depth): ingestion and pose tracking ask for
-        # the same frame's touches; each is perceived and scored once.
-        self._depths: dict[str, tuple[int, int, np.ndarray]] = {}
+        # ((frame index, reading ids), {finger: depth}): ingestion and pose tracking ask for
+        # the same frame's touches; each frame is perceived and scored once.
+        self._depths: tuple[tuple, dict[str, np.ndarray]] | None = None
 
     def __call__(self, frame: Frame, world_T_object: np.ndarray) -> dict[str, np.ndarray]:
         """Object-frame surface points per source: `camera` and each finger in contact."""
@@ -118,23 +118,30 @@ class PointExtractor:
             else:
                 masked = dataclasses.replace(reading, mask=mask)
                 out["camera"] = camera_points(masked, world_T_object, mask is not None)
+        depths = self.contact_depths(frame)
         for finger, tactile in frame.tactile.items():
-            pts = tactile_points(tactile, self.contact_depth(frame.index, tactile), world_T_object)
+            pts = tactile_points(tactile, depths[finger], world_T_object)
             if len(pts):
                 out[finger] = pts
         return out, every
 
-    def contact_depth(self, frame_index: int, reading: TactileReading) -> np.ndarray:
-        """The reading's contact depth from `tactile_depth`, scored once against the sim's."""
-        cached = self._depths.get(reading.finger)
-        if cached is not None and cached[:2] == (frame_index, id(reading)):
-            return cached[2]
-        depth = self.tactile_depth(reading)
-        if self.tactile_depth.source != "gt" and reading.gt_depth is not None:
-            self.depth_counts += depth_counts(depth, reading.gt_depth, reading.gt_contact_mask)
-            self.tactile_readings_scored += 1
-        self._depths[reading.finger] = (frame_index, id(reading), depth)
-        return depth
+    def contact_depths(self, frame: Frame) -> dict[str, np.ndarray]:
+        """Each finger's contact depth from `tactile_depth` (one batch per frame), scored
+        once against the simulator's where it exists."""
+        key = (frame.index, tuple(id(r) for r in frame.tactile.values()))
+        if self._depths is not None and self._depths[0] == key:
+            return self._depths[1]
+        readings = list(frame.tactile.values())
+        depths = dict(zip(frame.tactile, self.tactile_depth.batch(readings)))
+        if self.tactile_depth.source != "gt":
+            for reading in readings:
+                if reading.gt_depth is not None:
+                    truth = reading.gt_contact_mask
+                    counts = depth_counts(depths[reading.finger], reading.gt_depth, truth)
+                    self.depth_counts += counts
+                    self.tactile_readings_scored += 1
+        self._depths = (key, depths)
+        return depths
 
     def state_dict(self) -> dict:
         """The running perception figures (plain numbers), so a resumed run's figures cover

@@ -93,6 +93,15 @@ class TactileDepth:
             return self.net.predict(reading.image[None], background[None])[0]
         return self.from_image(reading.image, reading.background, reading.finger)
 
+    def batch(self, readings: list[TactileReading]) -> list[np.ndarray]:
+        """`self(r)` for each reading; the network takes them in one batch (a frame's
+        fingers: one forward pass instead of four)."""
+        if self.source != "net" or len(readings) < 2:
+            return [self(r) for r in readings]
+        backgrounds = [self._background(r.background, r.finger) for r in readings]
+        depths = self.net.predict(np.stack([r.image for r in readings]), np.stack(backgrounds))
+        return list(depths)
+
     def _background(self, background: np.ndarray | None, finger: str) -> np.ndarray:
         if background is None:
             raise DataError(

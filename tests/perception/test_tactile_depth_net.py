@@ -126,10 +126,19 @@ def test_net_source_finds_a_simulated_press_and_its_depth() -> None:
     reading = TactileReading(
         "index", render.image, pose, DIGIT_INTRINSICS, background=renderer.background_image
     )
-    depth = TactileDepth(TactileDepthConfig("net"))(reading)
+    source = TactileDepth(TactileDepthConfig("net"))
+    depth = source(reading)
     figures = summarise(depth_counts(depth, render.depth, render.contact_mask))
     assert render.contact_mask.sum() > 5000
     assert figures["contact_iou"] > 0.85 and figures["depth_mae_mm"] < 0.3
+    # A frame's fingers in one batch give what each gives alone (here: the press and an
+    # unpressed gel).
+    empty = TactileReading(
+        "ring", renderer.background_image, pose, DIGIT_INTRINSICS, renderer.background_image
+    )
+    pressed, unpressed = source.batch([reading, empty])
+    assert np.allclose(pressed, depth, atol=1e-6)
+    assert np.array_equal(unpressed, source(empty)) and not unpressed.any()
 
 
 def test_net_source_without_a_background_is_a_data_error() -> None:
