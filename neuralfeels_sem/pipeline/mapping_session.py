@@ -17,6 +17,7 @@ import logging
 import shutil
 import signal
 import time
+from collections.abc import Sequence
 from dataclasses import dataclass
 from pathlib import Path
 
@@ -31,6 +32,7 @@ from neuralfeels_sem.mapping.mapper import OnlineMapper
 from neuralfeels_sem.mapping.pose_source import PoseSource
 from neuralfeels_sem.mapping.provenance import Provenance
 from neuralfeels_sem.pipeline.interrupts import Interrupted, StopOnSignal
+from neuralfeels_sem.pipeline.observers import FrameObserver
 from neuralfeels_sem.pipeline.segments import Segment, load_segments, run_totals
 from neuralfeels_sem.sensors.base import Sensor
 from neuralfeels_sem.utils.atomic import atomic_write
@@ -60,6 +62,7 @@ class MappingSession:
         bound: the field's half-extent (for the mesh extraction and the floors).
         model_config: what a checkpoint must match to resume (the composed model config).
         provenance: the object, sensor, classes and model each checkpoint records.
+        observers: told of every mapped frame and scoring pass (pipeline/observers.py).
     """
 
     def __init__(
@@ -73,6 +76,7 @@ class MappingSession:
         model_config: dict,
         settings: SessionSettings,
         provenance: Provenance | None = None,
+        observers: Sequence[FrameObserver] = (),
     ) -> None:
         self.mapper = mapper
         self.classifier = classifier
@@ -83,6 +87,7 @@ class MappingSession:
         self.model_config = model_config
         self.settings = settings
         self.provenance = provenance
+        self.observers = list(observers)
         self.earlier_segments: list[Segment] = []  # of the run this one resumes
         self.segment = Segment()
         self.last_index = -1
@@ -104,7 +109,11 @@ class MappingSession:
         frame_period = float(getattr(sensor, "frame_period_s", 0.0))
         with self.stop:
             wall_start = time.perf_counter()
-            self._loop(sensor, wall_start)
+            try:
+                self._loop(sensor, wall_start)
+            finally:
+                for observer in self.observers:
+                    observer.close()
             self.segment.wall_s = time.perf_counter() - wall_start
             self.segment.partial = self.stop.requested
             scores = self._finish(baseline)
@@ -163,6 +172,8 @@ class MappingSession:
             is_last = total is not None and frame.index == total - 1
             if frame.index % self.settings.every_k_frames == 0 or is_last:
                 scores = self._score(frame.index, frame.time_s)
+                for observer in self.observers:
+                    observer.on_scores(frame.index, scores, self.mapper)
                 elapsed = time.perf_counter() - wall_start
                 bar.set_postfix(
                     t=f"{frame.time_s:.1f}s",
@@ -194,6 +205,8 @@ class MappingSession:
         self.mapper.add_frame(frame, labels, world_T_object=world_T_object)
         self.segment.add_frame(frame.index, frame.time_s)
         self.last_index = frame.index
+        for observer in self.observers:
+            observer.on_frame(frame, labels, world_T_object, self.mapper)
 
     def _score(self, frame_index: int, time_s: float) -> dict | None:
         field_T_gt = self.pose_source.field_T_gt_object()

@@ -15,6 +15,7 @@ checks run before any of this (tasks/run_guard.py). The frame loop is pipeline/m
 from __future__ import annotations
 
 import signal
+from collections.abc import Sequence
 from pathlib import Path
 
 from hydra.utils import instantiate
@@ -57,8 +58,10 @@ def run(cfg: DictConfig) -> dict:
         sensor.close()
 
 
-def map_object(cfg: DictConfig, obj, sensor, out: Path) -> dict:
-    """Map an opened sensor's frames; writes every run output into `out`."""
+def map_object(cfg: DictConfig, obj, sensor, out: Path, observers: Sequence = ()) -> dict:
+    """Map an opened sensor's frames; writes every run output into `out`.
+
+    `observers` (pipeline/observers.py) are told of every frame and scoring pass."""
     classifier = instantiate(cfg.classifier)
     device = resolve_device(cfg.device)
     bound = BOUND_MARGIN * obj.bounds_radius
@@ -83,6 +86,7 @@ def map_object(cfg: DictConfig, obj, sensor, out: Path) -> dict:
         model_cfg,
         settings,
         provenance=run_provenance(cfg, obj),
+        observers=observers,
     )
     run_metrics = session.run(sensor, resume=cfg.mapping.resume)
     metrics = {
