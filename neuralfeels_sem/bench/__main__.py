@@ -6,6 +6,7 @@ import argparse
 import importlib
 import json
 import logging
+import os
 import pkgutil
 import sys
 import time
@@ -47,6 +48,8 @@ def main(argv: list[str] | None = None) -> int:
             traceback.print_exc()
             result = {"error": f"{type(exc).__name__}: {exc}"}
         result["bench_wall_s"] = round(time.perf_counter() - start, 2)
+        # Shared machines: a figure means little without the load it was measured at.
+        result.setdefault("load_average_1min", round(os.getloadavg()[0], 2))
         report["results"][name.removeprefix("bench_")] = result
         print(f"[bench] {name}: {json.dumps(result)}", flush=True)
     with open(args.out, "w") as f:

@@ -1,16 +1,18 @@
 """Write the results page (docs/results.md) from run outputs.
 
-    python -m neuralfeels_sem.eval.results_page --out docs/results.md [--readme README.md] DIR [DIR ...]
+    python -m neuralfeels_sem.eval.results_page --out docs/results.md [--readme README.md]
+        [--bench bench.json] DIR [DIR ...]
 
 Each DIR is a run directory (holds `metrics.json`) or a sweep directory (job
 sub-directories with `metrics.json` and `.hydra/overrides.yaml`, as `-m` writes them).
-The page has four parts:
+The page has these parts:
 - multi-material objects (default config): mean-class matching per seed and mean ± std,
   beside the majority-material map and the margin over it; matching and shape-aware
   matching, F-score, classifier accuracy on judged touches and coverage;
 - single-material objects (the majority map already scores 100 %): classifier accuracy on
   judged touches, coverage, accuracy over all touches, F-score;
 - every other setting (ablations, runs with overrides), one table per source;
+- speed, from a `make bench` report (`--bench bench.json`), each figure with its load;
 - per source: the simulator oracles the runs used, the machine and load where recorded.
 A run belongs to the first two parts when its only overrides are the object, the seed and
 bookkeeping (experiment preset, launcher, hydra.*); any other override makes it a setting.
@@ -24,6 +26,7 @@ from collections.abc import Sequence
 from pathlib import Path
 
 from neuralfeels_sem.core.errors import DataError, UserError
+from neuralfeels_sem.eval.results_bench import speed_section
 from neuralfeels_sem.eval.results_runs import (
     Run,
     Source,
@@ -103,30 +106,21 @@ def source_lines(source: Source) -> list[str]:
 
 
 # ---------------------------------------------------------------------------- page
-def render(sources: Sequence[Source], command: str) -> str:
-    runs = [r for s in sources for r in s.runs]
+INTRO = [
+    "The headline figure is mean-class matching (the mean over the materials present of",
+    "each material's recall), always beside the majority map (a constant map painting the",
+    "whole object in its majority material) and the margin between them. Plain matching is",
+    "shown with the majority map's figure in brackets. Classifier figures are means over",
+    "runs; every metric is defined in [evaluation](evaluation.md).",
+]
+
+
+def material_sections(runs: Sequence[Run]) -> list[str]:
+    """The default-config runs: multi-material objects, then single-material ones."""
     default = [r for r in runs if not r.setting]
     multi = [r for r in default if not r.single_material]
     single = [r for r in default if r.single_material]
-    lines = [
-        "# Results",
-        "",
-        "<!-- Generated file: do not edit by hand. -->",
-        "This page is generated from run outputs by",
-        "",
-        "```bash",
-        command,
-        "```",
-        "",
-        "The headline figure is mean-class matching (the mean over the materials present of",
-        "each material's recall), always beside the majority map (a constant map painting the",
-        "whole object in its majority material) and the margin between them. Plain matching is",
-        "shown with the majority map's figure in brackets. Classifier figures are means over",
-        "runs; every metric is defined in [evaluation](evaluation.md).",
-        "",
-        "## Multi-material objects",
-        "",
-    ]
+    lines = ["## Multi-material objects", ""]
     lines += multi_material_table(multi) if multi else ["No default-config multi-material runs."]
     lines += [
         "",
@@ -137,30 +131,60 @@ def render(sources: Sequence[Source], command: str) -> str:
         "over all touches (an abstention counts as not correct).",
         "",
     ]
-    lines += single_material_table(single) if single else ["No single-material runs."]
-    perception = perception_table(runs)
-    if perception:
-        lines += [
-            "",
-            "## Perception against the simulator's ground truth",
-            "",
-            'Mean ± std over runs of the per-run figures of `metrics.json["perception"]`:',
-            "the segmented camera mask's IoU with the true object mask, camera frames whose",
-            "object could not be found (skipped, never fused), and the touches' contact IoU and",
-            "depth error on true contact pixels (see [perception](perception.md)).",
-            "",
-            *perception,
-        ]
-    lines += ["", "## Other settings", ""]
+    return lines + (single_material_table(single) if single else ["No single-material runs."])
+
+
+def perception_section(runs: Sequence[Run]) -> list[str]:
+    table = perception_table(runs)
+    if not table:
+        return []
+    return [
+        "",
+        "## Perception against the simulator's ground truth",
+        "",
+        'Mean ± std over runs of the per-run figures of `metrics.json["perception"]`:',
+        "the segmented camera mask's IoU with the true object mask, camera frames whose",
+        "object could not be found (skipped, never fused), and the touches' contact IoU and",
+        "depth error on true contact pixels (see [perception](perception.md)).",
+        "",
+        *table,
+    ]
+
+
+def settings_sections(sources: Sequence[Source]) -> list[str]:
+    """One table per source for its runs with other settings (ablations, overrides)."""
+    lines = ["", "## Other settings", ""]
     other = False
     for source in sources:
         members = [r for r in source.runs if r.setting]
         if members:
             lines += settings_table(source, members) + [""]
             other = True
-    if not other:
-        lines += ["No runs with other settings.", ""]
-    lines += ["## Sources", ""]
+    return lines if other else lines + ["No runs with other settings.", ""]
+
+
+def render(sources: Sequence[Source], command: str, bench: Path | None = None) -> str:
+    runs = [r for s in sources for r in s.runs]
+    lines = [
+        "# Results",
+        "",
+        "<!-- Generated file: do not edit by hand. -->",
+        "This page is generated from run outputs by",
+        "",
+        "```bash",
+        command,
+        "```",
+        "",
+        *INTRO,
+        "",
+        *material_sections(runs),
+        *perception_section(runs),
+        *settings_sections(sources),
+        *speed_section(bench),
+        "",
+        "## Sources",
+        "",
+    ]
     for source in sources:
         lines += source_lines(source)
     return "\n".join(lines) + "\n"
@@ -191,8 +215,9 @@ def update_readme(path: Path, sources: Sequence[Source]) -> None:
         raise DataError(f"{path}: cannot write ({exc.strerror})") from None
 
 
-def build_command(out: Path | None, dirs: Sequence[str]) -> str:
+def build_command(out: Path | None, dirs: Sequence[str], bench: Path | None = None) -> str:
     parts = [COMMAND] + ([f"--out {display_path(out)}"] if out is not None else [])
+    parts += [f"--bench {display_path(bench)}"] if bench is not None else []
     return " ".join(parts + [display_path(Path(d)) for d in dirs])
 
 
@@ -204,11 +229,14 @@ def main(argv: Sequence[str] | None = None) -> int:
     parser.add_argument(
         "--readme", type=Path, help="also rewrite this README's results table (between markers)"
     )
+    parser.add_argument(
+        "--bench", type=Path, help="a `make bench` report (bench.json) for the speed section"
+    )
     parser.add_argument("dirs", nargs="+", metavar="DIR", help="run or sweep directory")
     args = parser.parse_args(argv)
     try:
         sources = [load_source(Path(d)) for d in args.dirs]
-        page = render(sources, build_command(args.out, args.dirs))
+        page = render(sources, build_command(args.out, args.dirs, args.bench), args.bench)
         if args.out is None:
             sys.stdout.write(page)
         else:

@@ -127,35 +127,10 @@ class CameraRenderer:
             if depth_noise == "realsense"
             else None
         )
-        # Colour per segmentation code: nothing, table, occluder, then one per object label.
-        palette = [(0.0, 0.0, 0.0), TABLE_COLOUR, OCCLUDER_COLOUR]
-        if len(obj.class_names) + _FIRST_OBJECT + 1 > 256:
-            raise ValueError(
-                f"the camera renderer handles at most 252 materials, got {len(obj.class_names)}"
-            )
-
         self._scene = pyrender.Scene()
         self._seg_map: dict[pyrender.Node, int] = {}
-        self._object_nodes: list[pyrender.Node] = []
-        for label, sub in split_by_material(obj):
-            node = self._scene.add(pyrender.Mesh.from_trimesh(sub, smooth=True))
-            self._object_nodes.append(node)
-            self._seg_map[node] = _FIRST_OBJECT + len(palette) - 3
-            palette.append(
-                IGNORE_COLOUR if label == IGNORE else material_colour(obj.class_names[label])
-            )
-        self._palette = np.asarray(palette, np.float32)
-        self._table_node: pyrender.Node | None = None
-        if table_height is not None:
-            table = trimesh.creation.box(extents=(1.5, 1.5, 0.02))
-            pose = np.eye(4)
-            pose[2, 3] = table_height - 0.01
-            self._table_node = self._scene.add(pyrender.Mesh.from_trimesh(table), pose=pose)
-            self._seg_map[self._table_node] = _TABLE
-        for mesh, world_T_mesh in scenery:
-            check_pose(world_T_mesh, "scenery pose")
-            node = self._scene.add(pyrender.Mesh.from_trimesh(mesh), pose=world_T_mesh)
-            self._seg_map[node] = _TABLE
+        self._add_object(obj)
+        self._add_scenery(table_height, scenery)
         self._occluder_nodes: dict[int, tuple[trimesh.Trimesh, pyrender.Node]] = {}
 
         self._camera_node = self._scene.add(
@@ -169,6 +144,42 @@ class CameraRenderer:
         v, u = np.mgrid[0:height, 0:width].astype(np.float32)
         self._ray_x = (u - self.intrinsics.cx) / self.intrinsics.fx
         self._ray_y = (v - self.intrinsics.cy) / self.intrinsics.fy
+
+    def _add_object(self, obj: MaterialObject) -> None:
+        """One node per material, each with its segmentation code and colour."""
+        # Colour per segmentation code: nothing, table, occluder, then one per object label.
+        palette = [(0.0, 0.0, 0.0), TABLE_COLOUR, OCCLUDER_COLOUR]
+        if len(obj.class_names) + _FIRST_OBJECT + 1 > 256:
+            raise ValueError(
+                f"the camera renderer handles at most 252 materials, got {len(obj.class_names)}"
+            )
+        self._object_nodes: list[pyrender.Node] = []
+        for label, sub in split_by_material(obj):
+            node = self._scene.add(pyrender.Mesh.from_trimesh(sub, smooth=True))
+            self._object_nodes.append(node)
+            self._seg_map[node] = _FIRST_OBJECT + len(palette) - 3
+            palette.append(
+                IGNORE_COLOUR if label == IGNORE else material_colour(obj.class_names[label])
+            )
+        self._palette = np.asarray(palette, np.float32)
+
+    def _add_scenery(
+        self,
+        table_height: float | None,
+        scenery: Sequence[tuple[trimesh.Trimesh, np.ndarray]],
+    ) -> None:
+        """The table (if any) and the lab's other surfaces, all segmented as scenery."""
+        self._table_node: pyrender.Node | None = None
+        if table_height is not None:
+            table = trimesh.creation.box(extents=(1.5, 1.5, 0.02))
+            pose = np.eye(4)
+            pose[2, 3] = table_height - 0.01
+            self._table_node = self._scene.add(pyrender.Mesh.from_trimesh(table), pose=pose)
+            self._seg_map[self._table_node] = _TABLE
+        for mesh, world_T_mesh in scenery:
+            check_pose(world_T_mesh, "scenery pose")
+            node = self._scene.add(pyrender.Mesh.from_trimesh(mesh), pose=world_T_mesh)
+            self._seg_map[node] = _TABLE
 
     @property
     def world_T_camera(self) -> np.ndarray:

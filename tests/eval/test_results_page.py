@@ -326,3 +326,44 @@ def test_readme_without_markers_is_one_line(
     err = capsys.readouterr().err.strip()
     assert err.startswith("error: ") and "README.md" in err and "\n" not in err
     assert readme.read_text() == "# Front\n"
+
+
+def write_bench(path: Path, results: dict) -> Path:
+    report = {"machine": {"cpu_count": 2}, "started": "2026-11-24T21:25:12", "results": results}
+    path.write_text(json.dumps(report))
+    return path
+
+
+def test_speed_section_shows_the_bench_figures_with_their_load(
+    tmp_path: Path, object_sweep: Path
+) -> None:
+    bench = write_bench(
+        tmp_path / "bench.json",
+        {
+            "mapper": {"steps_per_s": 8.04, "frame_points_ms": 23.3, "load_avg_1min": 1.75},
+            "sim": {"full_frames_per_s": 28.93},  # no load recorded
+            "pose": {"error": "RuntimeError: broken"},  # a failed benchmark shows nothing
+        },
+    )
+    out = tmp_path / "results.md"
+    assert main(["--out", str(out), "--bench", str(bench), str(object_sweep)]) == 0
+    page = out.read_text()
+    assert f"--bench {bench}" in page.split("```")[1]
+    speed = section(page, "Speed")
+    assert "| mapper step (default config) | 8.04 steps/s | 1.8 | `mapper.steps_per_s` |" in speed
+    assert "| simulated rig, 4 DIGITs + RGB-D | 28.93 frames/s | - |" in speed
+    assert "started 2026-11-24T21:25:12; cpu_count 2" in speed
+    assert "pose" not in speed.split("| --- |")[-1]
+    assert "## Speed" not in generate(tmp_path / "again", object_sweep)  # only with --bench
+
+
+def test_a_bad_bench_report_is_one_line(
+    tmp_path: Path, object_sweep: Path, capsys: pytest.CaptureFixture
+) -> None:
+    bad = tmp_path / "bench.json"
+    bad.write_text("{not json")
+    assert main(["--bench", str(bad), str(object_sweep)]) == 2
+    err = capsys.readouterr().err.strip()
+    assert err.startswith(f"error: {bad}: not a bench report") and "\n" not in err
+    assert main(["--bench", str(tmp_path / "none.json"), str(object_sweep)]) == 2
+    assert "run `make bench` first" in capsys.readouterr().err

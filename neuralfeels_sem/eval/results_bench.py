@@ -1,0 +1,108 @@
+"""The speed section of the results page, read from a `make bench` report (bench.json).
+
+Only the figures named in FIGURES are shown, in that order; a figure the report does not
+hold (an older report, a benchmark that failed or did not run on this machine) is left out,
+never filled in. Each benchmark's own load average is shown where it recorded one, since
+these machines are shared and a figure means little without it.
+"""
+
+from __future__ import annotations
+
+import json
+from collections.abc import Sequence
+from pathlib import Path
+
+from neuralfeels_sem.core.errors import DataError
+
+# (benchmark, dotted key inside its result, what it measures, unit)
+FIGURES: tuple[tuple[str, str, str, str], ...] = (
+    ("sim", "full_frames_per_s", "simulated rig, 4 DIGITs + RGB-D", "frames/s"),
+    ("segmentation", "plushie.segmentation_ms", "camera segmentation (plushie)", "ms/frame"),
+    ("tactile_depth", "images_per_s_cpu_1thread", "tactile depth net, batch 4, 1 thread", "img/s"),
+    ("tactile_depth", "images_per_s_cpu_2thread", "tactile depth net, batch 4, 2 threads", "img/s"),
+    (
+        "classifier",
+        "images_per_s_shipped_112px_cpu",
+        "classifier, shipped 112 px, batch 4",
+        "img/s",
+    ),
+    ("classifier", "images_per_s_224px_cpu", "classifier, paper's 224 px, batch 4", "img/s"),
+    ("classifier", "contact_gate_ms_per_frame", "contact gate", "ms/frame"),
+    (
+        "field",
+        "cpu_cpu_default_log2_19_sparse.steps_per_s",
+        "field step, 4096 points, 2^19",
+        "steps/s",
+    ),
+    ("field", "cpu_paper_log2_24_sparse.steps_per_s", "field step, 4096 points, 2^24", "steps/s"),
+    ("mapper", "steps_per_s", "mapper step (default config)", "steps/s"),
+    ("mapper", "frame_points_ms", "mapper frame points (perception)", "ms/frame"),
+    ("mapper", "add_frame_per_s", "mapper frames (points + steps)", "frames/s"),
+    ("pose", "known_shape.ms_per_frame", "pose tracking against the true shape", "ms/frame"),
+    ("pose", "field.ms_per_frame", "pose tracking against the field", "ms/frame"),
+    ("recording", "write_fps", "recording written", "frames/s"),
+    ("recording", "read_fps", "recording replayed", "frames/s"),
+    ("eval", "shape_metrics_s", "F-score + Chamfer, 20,000 samples", "s"),
+)
+LOAD_KEYS = ("load_average_1min", "load_avg_1min", "load_average_1min_1thread")
+
+
+def load_bench(path: Path) -> dict:
+    """A bench.json report; a missing or malformed file is one DataError line."""
+    try:
+        report = json.loads(path.read_text())
+    except OSError as exc:
+        raise DataError(f"{path}: cannot read ({exc.strerror}); run `make bench` first") from None
+    except json.JSONDecodeError as exc:
+        raise DataError(f"{path}: not a bench report ({exc.msg}); run `make bench` again") from None
+    if not isinstance(report, dict) or not isinstance(report.get("results"), dict):
+        raise DataError(f"{path}: no 'results' object; run `make bench` again")
+    return report
+
+
+def lookup(result: dict, dotted: str):
+    value = result
+    for key in dotted.split("."):
+        if not isinstance(value, dict) or key not in value:
+            return None
+        value = value[key]
+    return value if isinstance(value, int | float) and not isinstance(value, bool) else None
+
+
+def bench_load(result: dict) -> str:
+    for key in LOAD_KEYS:
+        if isinstance(result.get(key), int | float):
+            return f"{result[key]:.1f}"
+    return "-"
+
+
+def bench_lines(report: dict, source: str) -> list[str]:
+    """The speed table and a line naming the report, its date and machine."""
+    results = report["results"]
+    rows = []
+    for bench, key, what, unit in FIGURES:
+        result = results.get(bench)
+        value = lookup(result, key) if isinstance(result, dict) else None
+        if value is not None:
+            rows.append(f"| {what} | {value:g} {unit} | {bench_load(result)} | `{bench}.{key}` |")
+    machine = report.get("machine", {})
+    where = ", ".join(
+        f"{k} {machine[k]}" for k in ("cpu_count", "cuda_device") if machine.get(k) is not None
+    )
+    head = [
+        f"From `{source}` (`make bench`, started {report.get('started', 'unknown')}; {where or 'machine not recorded'}).",
+        "",
+    ]
+    if not rows:
+        return head + ["The report holds none of the figures this page shows."]
+    return head + [
+        "| what | figure | 1-min load | bench.json key |",
+        "| --- | ---: | ---: | --- |",
+        *rows,
+    ]
+
+
+def speed_section(bench: Path | None) -> Sequence[str]:
+    if bench is None:
+        return []
+    return ["", "## Speed", "", *bench_lines(load_bench(bench), bench.as_posix())]
