@@ -21,6 +21,8 @@ import torch
 import torch.nn.functional as F
 from torch import Tensor, nn
 
+from neuralfeels_sem.fields.row_ops import gather_rows
+
 # Instant-NGP / tiny-cuda-nn spatial hash primes (the first is 1 for cache coherence).
 HASH_PRIMES = (1, 2654435761, 805459861)
 
@@ -170,7 +172,9 @@ class HashGridEncoding(nn.Module):
         n = x.shape[0]
         idx, weights = self.corner_indices(x)
         idx = idx.reshape(-1)
-        if self.sparse_grad and torch.is_grad_enabled() and self.table.requires_grad:
+        if not (torch.is_grad_enabled() and self.table.requires_grad):
+            feats = gather_rows(self.table, idx)  # queries: no graph, fastest gather
+        elif self.sparse_grad:
             feats = _SparseGather.apply(self.table, idx)
         else:
             feats = F.embedding(idx, self.table)
@@ -193,7 +197,7 @@ def sum_rows(idx: Tensor, values: Tensor, num_rows: int) -> tuple[Tensor, Tensor
     rows = sorted_idx[starts].long()
     segment = torch.cumsum(starts, dim=0) - 1
     sums = values.new_zeros((rows.numel(), *values.shape[1:]))
-    sums.index_add_(0, segment, values.index_select(0, perm))
+    sums.index_add_(0, segment, gather_rows(values, perm))
     return rows, sums
 
 
@@ -210,7 +214,7 @@ class _SparseGather(torch.autograd.Function):
     def forward(ctx, table: Tensor, idx: Tensor) -> Tensor:
         ctx.save_for_backward(idx)
         ctx.table_shape = table.shape
-        return table.index_select(0, idx)
+        return gather_rows(table, idx)
 
     @staticmethod
     @torch.autograd.function.once_differentiable
