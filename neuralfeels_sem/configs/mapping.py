@@ -34,6 +34,10 @@ class MappingConfig:
     pose: str = "gt"
     checkpoint_every: int = 25  # frames between checkpoint.pt writes (0: only at the end)
     resume: str | None = None  # a checkpoint.pt to continue a killed run from
+    # At sensor.pace=realtime: a frame due longer ago than this when the mapper could take
+    # it is dropped (counted in metrics.json frames_dropped), so the map never trails the
+    # world by more; about one mapped frame plus perception on the 2-core CPU (docs/usage.md).
+    max_lag_s: float = 1.0
     optimizer: OptimizerConfig = field(default_factory=OptimizerConfig)
     mapper: MapperConfig = field(default_factory=MapperConfig)
     tracker: TrackerConfig = field(default_factory=TrackerConfig)  # read when pose tracks
@@ -43,6 +47,8 @@ class MappingConfig:
             raise ValueError(f"mapping.pose={self.pose} must be one of {POSE_SOURCES}")
         if self.checkpoint_every < 0:
             raise ValueError(f"mapping.checkpoint_every={self.checkpoint_every} must be >= 0")
+        if not 0.0 < self.max_lag_s <= 3600.0:
+            raise ValueError(f"mapping.max_lag_s={self.max_lag_s} must be in (0, 3600] seconds")
 
 
 def register(cs) -> None:

@@ -10,6 +10,7 @@ from typing import Any
 
 from neuralfeels_sem.core.hand import FINGERS
 from neuralfeels_sem.core.limits import check_duration, check_rate
+from neuralfeels_sem.sensors.base import check_pace
 from neuralfeels_sem.sensors.real.hand_kinematics import kinematics_target
 from neuralfeels_sem.sensors.replay.damage import DAMAGE_POLICIES
 
@@ -166,6 +167,8 @@ class RealSensorConfig:
     name: str = "real"
     duration_s: float = 30.0
     fps: float = 10.0  # rate at which Frames are assembled from the device streams
+    # The devices do not wait for the mapper: it takes the newest frame (docs/usage.md).
+    pace: str = "realtime"
     digit: DigitConfig | None = field(default_factory=DigitConfig)
     camera: RealSenseConfig | None = field(default_factory=RealSenseConfig)
     hand: Any = None  # conf/sensor/hand/: allegro (default) or dynamixel; null: no hand
@@ -180,6 +183,7 @@ class RealSensorConfig:
     def __post_init__(self) -> None:
         check_duration("sensor.duration_s", self.duration_s)
         check_rate("sensor.fps", self.fps)
+        check_pace(self.pace)
         _check_pose("sensor.world_T_palm", self.world_T_palm)
         _check_pose("sensor.world_T_object", self.world_T_object)
 
@@ -192,7 +196,9 @@ class ReplaySensorConfig:
     name: str = "replay"
     recording: str | None = None  # a task=record directory, or a FeelSight log directory
     format: str = "native"  # native (task=record layout) or feelsight
-    realtime: bool = False  # true: yield at the recorded timing; false: as fast as consumed
+    # offline: every frame, as fast as the mapper takes them; realtime: at the recorded
+    # timing, the mapper taking the newest frame (docs/usage.md).
+    pace: str = "offline"
     camera: str = "front-left"  # FeelSight camera to read (front-left, back-right, top-down, ...)
     max_frames: int | None = None
     # A damaged frame (bad line in frames.jsonl, missing or unreadable file): skip it with a
@@ -200,6 +206,7 @@ class ReplaySensorConfig:
     on_damaged_frame: str = "skip"
 
     def __post_init__(self) -> None:
+        check_pace(self.pace)
         if self.format not in ("native", "feelsight"):
             raise ValueError(f"sensor.format={self.format!r} must be native or feelsight")
         if self.on_damaged_frame not in DAMAGE_POLICIES:

@@ -8,6 +8,7 @@ from neuralfeels_sem.configs.object import TACTILE_DATA_OBJECTS
 from neuralfeels_sem.core.digit import MAX_PENETRATION_M
 from neuralfeels_sem.core.hand import FINGERS
 from neuralfeels_sem.core.limits import check_duration, check_rate
+from neuralfeels_sem.sensors.base import check_pace
 from neuralfeels_sem.sim.depth_noise import DEPTH_NOISE_MODELS, RealSenseNoiseConfig
 
 
@@ -94,10 +95,14 @@ class SimSensorConfig:
     seed: int = 0  # the yaml sets ${seed}
     tactile: SimTactileConfig = field(default_factory=SimTactileConfig)
     rgbd: SimRgbdConfig = field(default_factory=SimRgbdConfig)
+    # offline: every frame is mapped, however long it takes; realtime: frame i is due at
+    # i / fps seconds of wall time and the mapper takes the newest (docs/usage.md).
+    pace: str = "offline"
 
     def __post_init__(self) -> None:
         check_duration("sensor.duration_s", self.duration_s)
         check_rate("sensor.fps", self.fps)
+        check_pace(self.pace)
         if not self.fingers or any(f not in FINGERS for f in self.fingers):
             raise ValueError(
                 f"sensor.fingers={self.fingers} must be a non-empty subset of {list(FINGERS)}"

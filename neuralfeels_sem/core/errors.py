@@ -29,3 +29,8 @@ class NoDataError(UserError):
 
 class NumericalError(UserError):
     """NaN or inf where a finite number is required (a diverged optimisation, a bad pose)."""
+
+
+class FrameSourceError(UserError):
+    """The frames' producer (acquisition, rendering, classification) failed during a run;
+    the run kept what it had mapped. The message names the error; its traceback is logged."""

@@ -3,12 +3,17 @@
 from __future__ import annotations
 
 import dataclasses
+import threading
 
 import numpy as np
 
 from neuralfeels_sem.core.digit import GEL_DISTANCE_M
 from neuralfeels_sem.core.frame import CameraReading, Frame
-from neuralfeels_sem.perception.camera_segmentation import CameraSegmenter, SegmentationConfig
+from neuralfeels_sem.perception.camera_segmentation import (
+    CameraSegmenter,
+    Segmentation,
+    SegmentationConfig,
+)
 from neuralfeels_sem.perception.pointcloud import camera_points, tactile_points
 from neuralfeels_sem.perception.segmentation_stats import SegmentationStats
 from neuralfeels_sem.perception.tactile_depth import TactileDepth
@@ -26,6 +31,21 @@ def fingertip_points(frame: Frame) -> np.ndarray:
         for r in frame.tactile.values()
     ]
     return np.asarray(tips, np.float64).reshape(-1, 3)
+
+
+@dataclasses.dataclass
+class _Percepts:
+    """One frame's perception, made once; counted in the running figures once, when mapped."""
+
+    segmentation: Segmentation | None = None
+    depths: dict[str, np.ndarray] | None = None
+    segmentation_counted: bool = False
+    depths_counted: bool = False
+
+
+def _frame_key(frame: Frame) -> tuple:
+    """A frame by index and readings: a frame whose readings were replaced is perceived anew."""
+    return (frame.index, id(frame.camera), tuple(id(r) for r in frame.tactile.values()))
 
 
 class PointExtractor:
@@ -59,20 +79,39 @@ class PointExtractor:
         self.hand_model = hand_model
         self.segmenter: CameraSegmenter | None = None
         self.stats = SegmentationStats()
-        self._last: tuple[int, int, np.ndarray] | None = None  # (frame index, reading id, mask)
         # For the run's pictures: the latest segmented camera frame and, where the
         # simulator's mask scores it, the worst one (reading, mask[, IoU]).
         self.last_segmented: tuple[CameraReading, np.ndarray] | None = None
         self.worst_segmented: tuple[CameraReading, np.ndarray, float] | None = None
         self.depth_counts = DepthCounts()
         self.tactile_readings_scored = 0
-        # ((frame index, reading ids), {finger: depth}): ingestion and pose tracking ask for
-        # the same frame's touches; each frame is perceived and scored once.
-        self._depths: tuple[tuple, dict[str, np.ndarray]] | None = None
+        # Frames perceived and not yet superseded: ingestion and pose tracking ask for the
+        # same frame, and a producer thread (pipeline/producer.py) perceives frames ahead of
+        # the mapper; each frame is perceived once and counted once, when it is mapped.
+        self._percepts: dict[tuple, _Percepts] = {}
+        self._lock = threading.Lock()
 
     def __call__(self, frame: Frame, world_T_object: np.ndarray) -> dict[str, np.ndarray]:
         """Object-frame surface points per source: `camera` and each finger in contact."""
         return self.extract(frame, world_T_object, every_pixel=False)[0]
+
+    def perceive(self, frame: Frame) -> None:
+        """Segment the camera and infer the contact depths of `frame` now, ahead of mapping it.
+
+        For a producer thread: the results wait for `extract` (the mapper's side), which
+        counts them in the running figures; a frame dropped unmapped is `forget`-ten.
+        """
+        percepts = self._entry(frame)
+        segments = self.camera_mask == "segment" and frame.camera is not None
+        if segments and percepts.segmentation is None:
+            percepts.segmentation = self._segment(frame)
+        if percepts.depths is None:
+            percepts.depths = self._infer_depths(frame)
+
+    def forget(self, frame: Frame) -> None:
+        """Drop what `perceive` kept for a frame that will not be mapped."""
+        with self._lock:
+            self._percepts.pop(_frame_key(frame), None)
 
     def object_mask(self, frame: Frame) -> np.ndarray | None:
         """The camera's object mask under `camera_mask` (None: every valid pixel).
@@ -84,19 +123,33 @@ class PointExtractor:
             return None
         if self.camera_mask == "gt":
             return reading.mask
-        key = (frame.index, id(reading))
-        if self._last is not None and self._last[:2] == key:
-            return self._last[2]
+        percepts = self._entry(frame, mapped=True)
+        if percepts.segmentation is None:
+            percepts.segmentation = self._segment(frame)
+        result = percepts.segmentation
+        if not percepts.segmentation_counted:
+            percepts.segmentation_counted = True
+            self.stats.add(result, reading.depth, reading.mask)
+            self.last_segmented = (reading, result.mask)
+            iou = self.stats.last_iou
+            if iou is not None and (self.worst_segmented is None or iou < self.worst_segmented[2]):
+                self.worst_segmented = (reading, result.mask, iou)
+        return result.mask
+
+    def _segment(self, frame: Frame) -> Segmentation:
         if self.segmenter is None:
             self.segmenter = CameraSegmenter(self.segmentation, self.hand_model)
-        result = self.segmenter(reading, frame.joint_positions, fingertip_points(frame))
-        self.stats.add(result, reading.depth, reading.mask)
-        self._last = (*key, result.mask)
-        self.last_segmented = (reading, result.mask)
-        iou = self.stats.last_iou
-        if iou is not None and (self.worst_segmented is None or iou < self.worst_segmented[2]):
-            self.worst_segmented = (reading, result.mask, iou)
-        return result.mask
+        return self.segmenter(frame.camera, frame.joint_positions, fingertip_points(frame))
+
+    def _entry(self, frame: Frame, mapped: bool = False) -> _Percepts:
+        """The frame's percepts (new when none); `mapped`: the mapper's side asks, so the
+        frames before this one are done with (mapped or dropped) and are let go."""
+        key = _frame_key(frame)
+        with self._lock:
+            if mapped:
+                for old in [k for k in self._percepts if k[0] < frame.index]:
+                    del self._percepts[old]
+            return self._percepts.setdefault(key, _Percepts())
 
     def extract(
         self, frame: Frame, world_T_object: np.ndarray, every_pixel: bool
@@ -128,20 +181,22 @@ class PointExtractor:
     def contact_depths(self, frame: Frame) -> dict[str, np.ndarray]:
         """Each finger's contact depth from `tactile_depth` (one batch per frame), scored
         once against the simulator's where it exists."""
-        key = (frame.index, tuple(id(r) for r in frame.tactile.values()))
-        if self._depths is not None and self._depths[0] == key:
-            return self._depths[1]
-        readings = list(frame.tactile.values())
-        depths = dict(zip(frame.tactile, self.tactile_depth.batch(readings)))
-        if self.tactile_depth.source != "gt":
-            for reading in readings:
+        percepts = self._entry(frame, mapped=True)
+        if percepts.depths is None:
+            percepts.depths = self._infer_depths(frame)
+        depths = percepts.depths
+        if not percepts.depths_counted and self.tactile_depth.source != "gt":
+            for reading in frame.tactile.values():
                 if reading.gt_depth is not None:
                     truth = reading.gt_contact_mask
                     counts = depth_counts(depths[reading.finger], reading.gt_depth, truth)
                     self.depth_counts += counts
                     self.tactile_readings_scored += 1
-        self._depths = (key, depths)
+        percepts.depths_counted = True
         return depths
+
+    def _infer_depths(self, frame: Frame) -> dict[str, np.ndarray]:
+        return dict(zip(frame.tactile, self.tactile_depth.batch(list(frame.tactile.values()))))
 
     def state_dict(self) -> dict:
         """The running perception figures (plain numbers), so a resumed run's figures cover

@@ -1,14 +1,21 @@
 """One mapping run over an opened sensor: the frame loop behind `task=map`.
 
-Per frame: classify the touches, log them for the classifier figures, estimate the object
-pose, add the frame to the mapper (which trains the field); every `every_k_frames` frames
-(and on the last) score the field, every len/`progression_snapshots` frames write a
-progression snapshot, every `checkpoint_every` frames write checkpoint.pt. A run resumed
-from a checkpoint skips the frames it already holds and continues where it stopped, with
-the scorer's curve, the pose source's state and the earlier segments' frame counts and
-wall times restored. SIGINT or SIGTERM stops the loop after the frame in progress (the
-result is then marked partial). At the end: the final checkpoint, the final scores and
-the coloured mesh. Every file is written atomically.
+A producer thread (producer.py) acquires or renders each frame, classifies its touches
+and runs the perception that needs no field (camera segmentation, tactile depth); this
+side, the mapper's, takes its frames from a bounded queue: logs the touches, estimates the
+object pose, adds the frame to the mapper (which trains the field) and tells the
+observers. At sensor.pace=offline every frame is mapped, in order, as by a sequential
+loop; at realtime the frames come at the sensor's clock, the mapper takes the newest one,
+drops any due more than `max_lag_s` ago and counts them (pace.py), and runs single steps
+while no new frame has come. Every `every_k_frames` frames (and on the last) the field is
+scored, every len/`progression_snapshots` frames a progression snapshot is written, every
+`checkpoint_every` frames checkpoint.pt; these read the field, so they run here, between
+steps. A run resumed from a checkpoint skips the frames it already holds and continues
+where it stopped, with the scorer's curve, the pose source's state and the earlier
+segments' frame counts and wall times restored. SIGINT or SIGTERM stops the loop after
+the frame in progress (the result is then marked partial); a producer that fails ends
+the loop the same way and `failure` holds its error. At the end: the final checkpoint,
+the final scores and the coloured mesh. Every file is written atomically.
 """
 
 from __future__ import annotations
@@ -33,6 +40,8 @@ from neuralfeels_sem.mapping.pose_source import PoseSource
 from neuralfeels_sem.mapping.provenance import Provenance
 from neuralfeels_sem.pipeline.interrupts import Interrupted, StopOnSignal
 from neuralfeels_sem.pipeline.observers import FrameObserver
+from neuralfeels_sem.pipeline.pace import PerceivedFrame, StreamEnd
+from neuralfeels_sem.pipeline.producer import FrameProducer
 from neuralfeels_sem.pipeline.segments import Segment, load_segments, run_totals
 from neuralfeels_sem.sensors.base import Sensor
 from neuralfeels_sem.utils.atomic import atomic_write
@@ -43,11 +52,12 @@ log = logging.getLogger(__name__)
 @dataclass
 class SessionSettings:
     """Cadences of a session (from eval.every_k_frames, mapping.checkpoint_every,
-    viz.progression_snapshots)."""
+    viz.progression_snapshots) and the realtime lag bound (mapping.max_lag_s)."""
 
     every_k_frames: int
     checkpoint_every: int  # 0: only the final checkpoint
     progression_snapshots: int
+    max_lag_s: float  # read at sensor.pace=realtime
 
 
 class MappingSession:
@@ -91,6 +101,7 @@ class MappingSession:
         self.earlier_segments: list[Segment] = []  # of the run this one resumes
         self.segment = Segment()
         self.last_index = -1
+        self.failure: BaseException | None = None  # the producer's error, if it failed
         self.stop = StopOnSignal(out)
         self.checkpoint_path = out / "checkpoint.pt"
         self.snapshots_dir = out / "progression"
@@ -115,7 +126,7 @@ class MappingSession:
                 for observer in self.observers:
                     observer.close()
             self.segment.wall_s = time.perf_counter() - wall_start
-            self.segment.partial = self.stop.requested
+            self.segment.partial = self.stop.requested or self.failure is not None
             scores = self._finish(baseline)
         totals = run_totals([*self.earlier_segments, self.segment], frame_period)
         return {
@@ -124,8 +135,14 @@ class MappingSession:
             "frames_total": self.last_index + 1,
             # A signal during the final scoring, after the last frame, leaves the run complete.
             "partial": self.segment.partial,
-            "stopped_by": signal.Signals(self.stop.signum).name if self.segment.partial else None,
+            "stopped_by": self._stopped_by(),
         }
+
+    def _stopped_by(self) -> str | None:
+        """The signal's name, `error` for a failed producer, None for a complete run."""
+        if not self.segment.partial:
+            return None
+        return "error" if self.failure is not None else signal.Signals(self.stop.signum).name
 
     def _floors(self) -> dict:
         """The untrained field's figures (returned) and the majority map's (logged)."""
@@ -162,44 +179,105 @@ class MappingSession:
     def _loop(self, sensor: Sensor, wall_start: float) -> None:
         total = len(sensor) if len(sensor) > 0 else None
         snapshot_every = max(1, (total or 100) // max(1, self.settings.progression_snapshots))
-        start_index = self.last_index
-        bar = tqdm(total=total, desc="map", unit="frame", dynamic_ncols=True)
-        for frame in sensor.frames():
-            bar.update(1)
-            if frame.index <= start_index:
-                continue  # already in the checkpoint
-            self._add(frame)
-            is_last = total is not None and frame.index == total - 1
-            if frame.index % self.settings.every_k_frames == 0 or is_last:
-                scores = self._score(frame.index, frame.time_s)
-                for observer in self.observers:
-                    observer.on_scores(frame.index, scores, self.mapper)
-                elapsed = time.perf_counter() - wall_start
-                bar.set_postfix(
-                    t=f"{frame.time_s:.1f}s",
-                    fps=f"{self.segment.frames / max(elapsed, 1e-9):.2f}",
-                    mean_class="n/a"
-                    if scores is None
-                    else f"{scores['matching_mean_class_pct']:.1f}%",
-                )
-            if frame.index % snapshot_every == 0 or is_last:
-                self._snapshot(frame.time_s, frame.index)
-            every = self.settings.checkpoint_every
-            if every and frame.index % every == 0:
-                self.segment.wall_s = time.perf_counter() - wall_start
-                self._checkpoint()
-            if self.stop.requested:
-                break  # the frame in progress is done: nothing is lost
-        bar.close()
-
-    def _add(self, frame: Frame) -> None:
-        """Classify the frame's touches, estimate its pose and give it to the mapper."""
-        readings = list(frame.tactile.values())
-        labels = (
-            {r.finger: lab for r, lab in zip(readings, self.classifier.classify(readings))}
-            if readings
-            else {}
+        points = self.mapper.points
+        producer = FrameProducer(
+            sensor, self.classifier.classify, points.perceive, points.forget, self.last_index
         )
+        bar = tqdm(total=total, desc="map", unit="frame", dynamic_ncols=True)
+        bar.update(self.last_index + 1)
+        producer.start()
+        try:
+            while not self.stop.requested:
+                item = producer.queue.get(timeout=0.0 if self._idle_steps(producer) else 0.1)
+                if item is None:
+                    continue
+                self.segment.frames_dropped += item.dropped_before
+                bar.update(item.dropped_before + isinstance(item, PerceivedFrame))
+                if isinstance(item, StreamEnd):
+                    self._end_of_stream(item, total if producer.clock is not None else None)
+                    break
+                if self._too_late(producer, item):
+                    continue
+                self._map(item, total, snapshot_every, wall_start, bar)
+        finally:
+            producer.stop()
+            bar.close()
+
+    def _idle_steps(self, producer: FrameProducer) -> bool:
+        """Realtime: one optimiser step while no new frame has come (True: one ran)."""
+        if producer.clock is None or not self.mapper.has_surface:
+            return False
+        if producer.queue.ready():
+            return False
+        self.mapper.optimize(1)
+        self.segment.idle_steps += 1
+        return True
+
+    def _too_late(self, producer: FrameProducer, item: PerceivedFrame) -> bool:
+        """Realtime: drop (and count) a frame due more than max_lag_s ago; note the lag of
+        one taken."""
+        if producer.clock is None:
+            return False
+        lag = producer.clock.lag(item.frame.index)
+        if lag > self.settings.max_lag_s:
+            self.segment.frames_dropped += 1
+            self.mapper.points.forget(item.frame)
+            return True
+        self.segment.add_lag(max(0.0, lag))
+        return False
+
+    def _end_of_stream(self, end: StreamEnd, realtime_total: int | None) -> None:
+        """A failed producer's error is kept; a realtime stream whose last frames were
+        dropped (`realtime_total`: the sensor's frame count) is scored and snapshotted at
+        the last frame mapped."""
+        if end.error is not None:
+            self.failure = end.error
+            return
+        last_time_s = self.segment.last_time_s
+        total = realtime_total
+        if total is not None and 0 <= self.last_index < total - 1 and last_time_s is not None:
+            self._scores_and_snapshot(self.last_index, last_time_s, None)
+
+    def _map(
+        self, item: PerceivedFrame, total: int | None, snapshot_every: int, wall_start: float, bar
+    ) -> None:
+        """Map one frame, then score, snapshot and checkpoint where their cadence falls."""
+        frame, previous = item.frame, self.last_index
+        self._add(frame, item.labels)
+        is_last = total is not None and frame.index == total - 1
+
+        def crossed(every: int) -> bool:  # a multiple of `every` reached (or passed: realtime)
+            return frame.index // every > previous // every
+
+        if crossed(self.settings.every_k_frames) or is_last:
+            self._scores_and_snapshot(frame.index, frame.time_s, bar, wall_start)
+        if crossed(snapshot_every) or is_last:
+            self._snapshot(frame.time_s, frame.index)
+        every = self.settings.checkpoint_every
+        if every and crossed(every):
+            self.segment.wall_s = time.perf_counter() - wall_start
+            self._checkpoint()
+
+    def _scores_and_snapshot(
+        self, frame_index: int, time_s: float, bar, wall_start: float | None = None
+    ) -> None:
+        """Score the field, tell the observers, show the figures on the bar; without a bar
+        (the end of a realtime stream) also write the snapshot."""
+        scores = self._score(frame_index, time_s)
+        for observer in self.observers:
+            observer.on_scores(frame_index, scores, self.mapper)
+        if bar is None:
+            self._snapshot(time_s, frame_index)
+            return
+        elapsed = time.perf_counter() - wall_start
+        bar.set_postfix(
+            t=f"{time_s:.1f}s",
+            fps=f"{self.segment.frames / max(elapsed, 1e-9):.2f}",
+            mean_class="n/a" if scores is None else f"{scores['matching_mean_class_pct']:.1f}%",
+        )
+
+    def _add(self, frame: Frame, labels: dict) -> None:
+        """Log the frame's classified touches, estimate its pose and give it to the mapper."""
         self.scorer.log_touches(frame, labels)
         world_T_object = self.pose_source.estimate(frame, self.mapper)
         self.mapper.add_frame(frame, labels, world_T_object=world_T_object)
@@ -252,6 +330,8 @@ class MappingSession:
             trained_on["optimizer_steps"] == 0
             or (trained_on["camera_points"] + trained_on["tactile_points"]) == 0
         ):
+            if self.failure is not None:
+                raise self.failure  # nothing mapped to keep: the producer's error alone
             if self.stop.requested:
                 raise Interrupted(
                     self.stop.signum,

@@ -19,7 +19,19 @@ class Segment:
     wall_s: float = 0.0
     first_time_s: float | None = None
     last_time_s: float | None = None
-    partial: bool = False  # stopped by a signal before the sensor's last frame
+    partial: bool = False  # stopped by a signal (or a failed producer) before the last frame
+    # sensor.pace=realtime (pipeline/pace.py): frames the mapper never took, the lag of
+    # those it took (seconds since due), and steps run while no new frame had come.
+    frames_dropped: int = 0
+    lag_frames: int = 0
+    lag_sum_s: float = 0.0
+    lag_max_s: float | None = None
+    idle_steps: int = 0
+
+    def add_lag(self, lag_s: float) -> None:
+        self.lag_frames += 1
+        self.lag_sum_s += lag_s
+        self.lag_max_s = lag_s if self.lag_max_s is None else max(self.lag_max_s, lag_s)
 
     def add_frame(self, index: int, time_s: float) -> None:
         if self.first_time_s is None:
@@ -36,8 +48,11 @@ def load_segments(records: list[dict]) -> list[Segment]:
 
 
 def run_totals(segments: list[Segment], frame_period_s: float) -> dict:
-    """Frames, wall time and sensor time of the whole run, and its realtime factor."""
+    """Frames, wall time and sensor time of the whole run, its realtime factor, and (at
+    sensor.pace=realtime) the frames dropped and the lag of the frames mapped."""
     frames = sum(s.frames for s in segments)
+    lagged = [s for s in segments if s.lag_frames]
+    lag_frames = sum(s.lag_frames for s in lagged)
     wall_s = sum(s.wall_s for s in segments)
     timed = [s for s in segments if s.first_time_s is not None]
     sensor_time_s = timed[-1].last_time_s - timed[0].first_time_s + frame_period_s if timed else 0.0
@@ -46,5 +61,9 @@ def run_totals(segments: list[Segment], frame_period_s: float) -> dict:
         "wall_s": wall_s,
         "sensor_time_s": sensor_time_s,
         "realtime_factor": sensor_time_s / wall_s if wall_s > 0 else None,
+        "frames_dropped": sum(s.frames_dropped for s in segments),
+        "lag_max_s": max(s.lag_max_s for s in lagged) if lagged else None,
+        "lag_mean_s": sum(s.lag_sum_s for s in lagged) / lag_frames if lagged else None,
+        "idle_steps": sum(s.idle_steps for s in segments),
         "segments": [s.to_dict() for s in segments],
     }

@@ -7,9 +7,19 @@ instantiated in tests; `open()` connects to devices or builds the simulator.
 from __future__ import annotations
 
 from abc import ABC, abstractmethod
-from collections.abc import Iterator
+from collections.abc import Callable, Iterator
 
 from neuralfeels_sem.core.frame import Frame
+
+# sensor.pace: offline maps every frame, however long that takes; realtime streams at the
+# sensor's own clock and the mapper takes the newest frame (pipeline/producer.py).
+PACES = ("offline", "realtime")
+
+
+def check_pace(pace: str) -> str:
+    if pace not in PACES:
+        raise ValueError(f"sensor.pace={pace!r}: use one of {', '.join(PACES)}")
+    return pace
 
 
 class Sensor(ABC):
@@ -17,6 +27,8 @@ class Sensor(ABC):
 
     #: sensor time between frames, seconds
     frame_period_s: float = 0.1
+    #: offline | realtime (PACES): how a mapping run consumes this sensor's frames
+    pace: str = "offline"
 
     def open(self) -> None:  # noqa: B027 - optional hook
         """Connect / build; raise HardwareError or DataError with a one-line fix."""
@@ -27,6 +39,17 @@ class Sensor(ABC):
     @abstractmethod
     def frames(self) -> Iterator[Frame]:
         """Yield frames until the configured duration or the end of the data."""
+
+    def frames_from_clock(self, due_index: Callable[[], int]) -> Iterator[Frame]:
+        """Frames at the sensor's own clock: `due_index()` is the newest frame the world has
+        reached now; a frame overtaken by a newer due one is not yielded.
+
+        This default reads every frame and skips the overtaken ones; a sensor that can go
+        straight to a frame (the simulator) overrides it and never makes them.
+        """
+        for frame in self.frames():
+            if frame.index >= due_index():
+                yield frame
 
     def hand_model(self) -> object | None:
         """The hand's kinematic model for camera segmentation, or None when unknown.

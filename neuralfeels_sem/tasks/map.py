@@ -14,6 +14,7 @@ checks run before any of this (tasks/run_guard.py). The frame loop is pipeline/m
 
 from __future__ import annotations
 
+import logging
 import signal
 from collections.abc import Sequence
 from pathlib import Path
@@ -22,6 +23,7 @@ from hydra.utils import instantiate
 from omegaconf import DictConfig
 
 from neuralfeels_sem.configs import to_config
+from neuralfeels_sem.core.errors import FrameSourceError, UserError
 from neuralfeels_sem.eval.oracles import oracles_used
 from neuralfeels_sem.mapping.pose_source import build_pose_source
 from neuralfeels_sem.mapping.pose_tracker import TrackerConfig
@@ -45,6 +47,8 @@ from neuralfeels_sem.tasks.runner import output_dir
 from neuralfeels_sem.utils.device import resolve_device
 from neuralfeels_sem.viz.run_report import print_summary, write_pictures
 from neuralfeels_sem.viz.segmentation_overlay import write_segmentation_pictures
+
+log = logging.getLogger(__name__)
 
 
 def run(cfg: DictConfig) -> dict:
@@ -75,6 +79,7 @@ def map_object(cfg: DictConfig, obj, sensor, out: Path, observers: Sequence = ()
         every_k_frames=int(cfg.eval.every_k_frames),
         checkpoint_every=int(cfg.mapping.checkpoint_every),
         progression_snapshots=int(cfg.viz.progression_snapshots),
+        max_lag_s=float(cfg.mapping.max_lag_s),
     )
     session = MappingSession(
         mapper,
@@ -94,12 +99,17 @@ def map_object(cfg: DictConfig, obj, sensor, out: Path, observers: Sequence = ()
         "machine": machine_info(device),
         "load_avg": load_avg(),  # 1, 5, 15 min at the end
         "trained_on": mapper.trained_on,
+        # offline: every frame mapped; realtime: frames_dropped and lag_* say what was not
+        "pace": sensor.pace,
+        "max_lag_s": float(cfg.mapping.max_lag_s),
         "pose_source": pose_source.name,
         "oracles": oracles_used(cfg),
         "perception": mapper.points.perception_summary(),
         # a replay's damaged frames (skipped, listed) and dropped tail; absent otherwise
         **({"replay": damage} if (damage := sensor.damage_report()) else {}),
         **pose_source.metrics(),
+        # a producer that failed mid-run (the run kept what it had mapped)
+        **({"error": _one_line(session.failure)} if session.failure is not None else {}),
         "config": {
             "object": cfg.object.name,
             "sensor": cfg.sensor.name,
@@ -121,9 +131,30 @@ def map_object(cfg: DictConfig, obj, sensor, out: Path, observers: Sequence = ()
         pose_source.write_pictures(out, int(cfg.viz.dpi))
         write_segmentation_pictures(mapper.points, out)
     print_summary(metrics, out)
+    if session.failure is not None:
+        raise _failed(session.failure, metrics, out)
     if metrics["partial"]:
         raise _interrupted(metrics, out)
     return metrics
+
+
+def _one_line(error: BaseException) -> str:
+    lines = str(error).strip().splitlines()
+    return f"{type(error).__name__}: {lines[0] if lines else ''}".rstrip(": ")
+
+
+def _failed(error: BaseException, metrics: dict, out: Path) -> BaseException:
+    """What a run whose producer failed ends with: its own user error, or one line naming
+    the failure (traceback in the log), after the outputs were written."""
+    kept = (
+        f"after frame {metrics['frames_total'] - 1}: checkpoint, partial metrics.json, "
+        f"touches.csv and pictures are in {out}; continue with mapping.resume={out / 'checkpoint.pt'}"
+    )
+    if isinstance(error, UserError):
+        log.warning("the run stopped %s", kept)
+        return error
+    log.error("the frame producer failed", exc_info=error)
+    return FrameSourceError(f"the frame producer failed ({_one_line(error)}) {kept}")
 
 
 def _interrupted(metrics: dict, out: Path) -> Interrupted:

@@ -20,7 +20,7 @@ from hydra.utils import get_class
 from neuralfeels_sem.core.digit import DIGIT_INTRINSICS
 from neuralfeels_sem.core.errors import ConfigError, HardwareError, UserError
 from neuralfeels_sem.core.frame import CameraReading, Frame, TactileReading
-from neuralfeels_sem.sensors.base import Sensor
+from neuralfeels_sem.sensors.base import Sensor, check_pace
 from neuralfeels_sem.sensors.real.aruco_pose import MISSING_LAYOUT, ArucoObjectPose
 from neuralfeels_sem.sensors.real.digit import DigitArray
 from neuralfeels_sem.sensors.real.hand_kinematics import kinematics_target
@@ -50,6 +50,7 @@ class RealSensor(Sensor):
         name: str = "real",
         obj: Any = None,
         class_names: Sequence[str] | None = None,
+        pace: str = "realtime",
     ) -> None:
         if fps <= 0 or duration_s <= 0:
             raise ValueError(f"fps={fps} and duration_s={duration_s} must be > 0")
@@ -70,6 +71,8 @@ class RealSensor(Sensor):
         self.name = name
         self.obj = obj  # unused on hardware; accepted so every sensor is completed alike
         self.class_names = None if class_names is None else list(class_names)
+        # realtime (default): the mapper keeps up with the devices by taking the newest frame.
+        self.pace = check_pace(pace)
         self.stream_times: dict[str, float] = {}
         self._kinematics = None
         self._opened: list[Any] = []

@@ -1,7 +1,7 @@
 """sensor=replay: yield the Frames of a recording (task=record layout or a FeelSight log).
 
-`realtime=False` yields as fast as the consumer takes frames (the default for mapping
-and evaluation); `realtime=True` sleeps so frames come out at their recorded times.
+`pace="offline"` yields as fast as the consumer takes frames (the default for mapping
+and evaluation); `pace="realtime"` sleeps so frames come out at their recorded times.
 A damaged frame is skipped with a warning and counted, or ends the run
 (`on_damaged_frame`, damage.py).
 """
@@ -16,7 +16,7 @@ from typing import Any
 
 from neuralfeels_sem.core.errors import ConfigError, DataError
 from neuralfeels_sem.core.frame import Frame
-from neuralfeels_sem.sensors.base import Sensor
+from neuralfeels_sem.sensors.base import Sensor, check_pace
 from neuralfeels_sem.sensors.hand_spec import hand_model_from_spec
 from neuralfeels_sem.sensors.replay.damage import DAMAGE_POLICIES, DamagedFrame, DamageLog
 
@@ -29,7 +29,7 @@ class ReplaySensor(Sensor):
     def __init__(
         self,
         recording: str | None = None,
-        realtime: bool = False,
+        pace: str = "offline",
         format: str = "native",
         camera: str = "front-left",
         max_frames: int | None = None,
@@ -45,7 +45,7 @@ class ReplaySensor(Sensor):
         self.on_damaged_frame = on_damaged_frame
         self.damage: DamageLog | None = None
         self.recording = recording
-        self.realtime = realtime
+        self.pace = check_pace(pace)
         self.format = format
         self.camera = camera
         self.max_frames = max_frames
@@ -104,7 +104,7 @@ class ReplaySensor(Sensor):
             except DamagedFrame as damage:
                 self.damage.add(damage)  # warns and counts, or stops the run in one line
                 continue
-            if self.realtime:
+            if self.pace == "realtime":
                 start_time = frame.time_s if start_time is None else start_time
                 delay = (frame.time_s - start_time) - (time.monotonic() - start_wall)
                 if delay > 0:

@@ -10,7 +10,7 @@ the same sensors a run sees.
 
 from __future__ import annotations
 
-from collections.abc import Iterator, Sequence
+from collections.abc import Callable, Iterator, Sequence
 
 import numpy as np
 
@@ -19,7 +19,7 @@ from neuralfeels_sem.core.errors import ConfigError
 from neuralfeels_sem.core.frame import Frame, TactileReading
 from neuralfeels_sem.core.hand import FINGERS
 from neuralfeels_sem.objects.material_object import MaterialObject
-from neuralfeels_sem.sensors.base import Sensor
+from neuralfeels_sem.sensors.base import Sensor, check_pace
 from neuralfeels_sem.sim.backgrounds import finger_seed
 
 DEFAULT_FIRMNESS_MM = {"index": 1.5, "middle": 1.5, "ring": 1.5, "thumb": 0.7}
@@ -42,6 +42,7 @@ class SimSensor(Sensor):
         tactile: DigitRenderer options (background, noise_std, texture_scale, ...).
         rgbd: camera options (width, height, fov_y_deg, depth_noise, realsense, distance)
             and the lab scenery (table_height, backdrop_distance, mount).
+        pace: offline | realtime (sensors/base.py PACES), read by a mapping run.
     """
 
     def __init__(
@@ -64,6 +65,7 @@ class SimSensor(Sensor):
         seed: int = 0,
         tactile: dict | None = None,
         rgbd: dict | None = None,
+        pace: str = "offline",
     ) -> None:
         if duration_s <= 0 or fps <= 0:
             raise ValueError(f"duration_s and fps must be > 0, got {duration_s}, {fps}")
@@ -90,6 +92,7 @@ class SimSensor(Sensor):
         self.seed = int(seed)
         self.tactile_options = dict(tactile or {})
         self.rgbd_options = dict(rgbd or {})
+        self.pace = check_pace(pace)
         self.rig = None
         self.renderers: dict = {}
         self.camera_renderer = None
@@ -169,6 +172,14 @@ class SimSensor(Sensor):
         self.open()
         for index in range(len(self)):
             yield self.frame_at(index)
+
+    def frames_from_clock(self, due_index: Callable[[], int]) -> Iterator[Frame]:
+        """Only the newest due frame is rendered: the overtaken ones are never made."""
+        self.open()
+        index = 0
+        while (index := max(index, due_index())) < len(self):
+            yield self.frame_at(index)
+            index += 1
 
     def frame_at(self, index: int) -> Frame:
         """Frame `index` (call with non-decreasing indices: the fingers move incrementally)."""

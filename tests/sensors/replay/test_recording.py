@@ -95,11 +95,11 @@ def test_realtime_replay_waits_for_the_recorded_times(tmp_path, monkeypatch) -> 
         clock["now"] += seconds
 
     monkeypatch.setattr(replay_module.time, "sleep", fake_sleep)
-    with ReplaySensor(recording=str(tmp_path / "rec"), realtime=True) as sensor:
+    with ReplaySensor(recording=str(tmp_path / "rec"), pace="realtime") as sensor:
         list(sensor.frames())
     expected = [frames[i].time_s - frames[i - 1].time_s for i in (1, 2)]
     np.testing.assert_allclose(sleeps, expected, rtol=0, atol=1e-12)
-    with ReplaySensor(recording=str(tmp_path / "rec"), realtime=False) as sensor:
+    with ReplaySensor(recording=str(tmp_path / "rec"), pace="offline") as sensor:
         sleeps.clear()
         list(sensor.frames())
     assert sleeps == []
