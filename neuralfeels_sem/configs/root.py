@@ -15,6 +15,8 @@ class RootConfig:
     # The classifier's classes, in its output order (default: neuralfeels_sem/core/materials.py).
     materials: list[str] = field(default_factory=lambda: list(DEFAULT_MATERIALS))
     device: str = "auto"  # auto | cpu | cuda | cuda:N
+    # torch CPU threads: auto (OMP_NUM_THREADS, else 1: measured, utils/device.py) | N
+    threads: str = "auto"
     run_dir: Any = None  # an existing run directory, for task=eval
     # Config groups (their own schemas check them).
     sensor: Any = None
@@ -35,6 +37,9 @@ class RootConfig:
             raise ValueError(f"materials={self.materials} has duplicates")
         if not (self.device in ("auto", "cpu", "cuda") or self.device.startswith("cuda:")):
             raise ValueError(f"device={self.device!r} must be auto, cpu, cuda or cuda:N")
+        threads = str(self.threads)
+        if threads != "auto" and not (threads.isdigit() and int(threads) >= 1):
+            raise ValueError(f"threads={self.threads!r} must be auto or a whole number >= 1")
 
 
 @dataclass

@@ -28,6 +28,7 @@ from neuralfeels_sem.configs import validate_config
 from neuralfeels_sem.core.errors import UserError
 from neuralfeels_sem.pipeline.interrupts import Interrupted
 from neuralfeels_sem.tasks.preflight import preflight
+from neuralfeels_sem.utils.device import THREADS_AUTO, set_threads
 from neuralfeels_sem.utils.seed import seed_everything
 
 log = logging.getLogger(__name__)
@@ -98,6 +99,7 @@ def run_task(cfg: DictConfig) -> float | None:
             if _is_multirun():  # a single run was checked by tasks/run_guard.py already
                 preflight(cfg)
             seed_everything(int(cfg.seed))
+            set_threads(cfg.get("threads", THREADS_AUTO))
             task = get_method(cfg.task._target_)
             result = task(cfg)
         except InstantiationException as exc:

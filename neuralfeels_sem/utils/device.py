@@ -1,8 +1,19 @@
-"""Pick the torch device: `auto` means CUDA when present, else all CPU cores."""
+"""Pick the torch device (`auto`: CUDA when present, else CPU) and the CPU thread count.
+
+`threads` (a root config key, resolved once at start-up by tasks/runner.py):
+- `auto`: OMP_NUM_THREADS when set, else 1 thread. Measured on the project's 2-core
+  machines (docs/field_and_mapper.md#cost): a mapper step with two torch threads took
+  0.8 s of CPU instead of 0.09 s with one while other jobs ran (load 15-19: OpenMP's
+  waiting threads spin on cores that other processes need), for a gain of at most about
+  1.3x on an idle machine. One thread is the setting that is never badly wrong.
+- `N`: exactly N torch threads (for an idle machine, or more cores).
+"""
 
 import os
 
 from neuralfeels_sem.core.errors import ConfigError
+
+THREADS_AUTO = "auto"
 
 
 def resolve_device(name: str = "auto") -> "torch.device":  # noqa: F821
@@ -14,7 +25,25 @@ def resolve_device(name: str = "auto") -> "torch.device":  # noqa: F821
         raise ConfigError(
             f"device={name} but no CUDA GPU is visible; use device=cpu or device=auto"
         )
-    if name == "cpu" and "OMP_NUM_THREADS" not in os.environ:
-        # All cores by default; an explicit OMP_NUM_THREADS (e.g. on a shared machine) wins.
-        torch.set_num_threads(max(1, os.cpu_count() or 1))
     return torch.device(name)
+
+
+def resolve_threads(setting: str | int = THREADS_AUTO) -> int:
+    """The torch CPU thread count a `threads` setting asks for (see the module docstring)."""
+    text = str(setting).strip()
+    if text == THREADS_AUTO:
+        env = os.environ.get("OMP_NUM_THREADS", "")
+        return int(env) if env.isdigit() and int(env) > 0 else 1
+    if not text.isdigit() or int(text) < 1:
+        raise ConfigError(f"threads={setting!r}: use auto or a whole number >= 1")
+    return int(text)
+
+
+def set_threads(setting: str | int = THREADS_AUTO) -> int:
+    """Set torch's CPU threads from a `threads` setting once, at start-up; returns the count."""
+    import torch
+
+    threads = resolve_threads(setting)
+    if torch.get_num_threads() != threads:
+        torch.set_num_threads(threads)
+    return threads

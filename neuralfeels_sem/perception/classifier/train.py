@@ -14,7 +14,6 @@ from __future__ import annotations
 
 import json
 import logging
-import os
 from dataclasses import asdict, dataclass
 from pathlib import Path
 
@@ -263,12 +262,8 @@ def _training_set(
 
 
 def _device(name: str) -> torch.device:
-    device = resolve_device(name)
-    if device.type == "cpu" and os.environ.get("OMP_NUM_THREADS", "").isdigit():
-        # All cores by default; an explicit OMP_NUM_THREADS wins (a shared, busy machine
-        # trains faster on fewer threads than on oversubscribed ones).
-        torch.set_num_threads(int(os.environ["OMP_NUM_THREADS"]))
-    return device
+    # CPU threads: the root key `threads`, set once at start-up (utils/device.py).
+    return resolve_device(name)
 
 
 def _report(predict, loaded: LoadedSet, parts: dict, data_root: str, class_names) -> dict:
