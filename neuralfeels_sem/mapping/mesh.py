@@ -35,15 +35,19 @@ def sdf_grid(
     center: Sequence[float] = (0.0, 0.0, 0.0),
     chunk: int = 65536,
     coarse_step: int = 4,
-    margin_cells: float = 1.5,
+    dilation_cells: int = 1,
 ) -> tuple[np.ndarray, np.ndarray]:
     """SDF on a resolution^3 grid spanning center +- bound; returns (grid, axis coordinates).
 
     Coarse to fine, because a dense 128^3-256^3 query dominates evaluation time: the SDF is
     first sampled every `coarse_step` grid points; only coarse cells whose corners change
-    sign or come within `margin_cells` coarse-cell diagonals of zero are evaluated at full
-    resolution. Elsewhere the grid holds the nearest coarse value, which has the right sign
-    and is far from zero, so marching cubes finds the same surface (`coarse_step=1`: dense).
+    sign, and the cells within `dilation_cells` of one, are evaluated at full resolution.
+    Elsewhere the grid holds the nearest coarse value, which has the right sign, so
+    marching cubes finds the same surface (`coarse_step=1`: dense). A test on distance
+    (|SDF| below a margin) would not prune a trained field: its SDF is only trained
+    within the truncation band and stays small far from the surface. What this misses is
+    a surface wholly inside one coarse cell and its neighbours without a coarse corner on
+    the other side: a blob under about `coarse_step` grid cells across.
     """
     if resolution < 2 or bound <= 0:
         raise ValueError(f"need resolution >= 2 and bound > 0, got {resolution}, {bound}")
@@ -61,30 +65,59 @@ def sdf_grid(
     nodes = np.unique(np.append(np.arange(0, resolution, coarse_step), resolution - 1))
     cx, cy, cz = np.meshgrid(nodes, nodes, nodes, indexing="ij")
     coarse = query(cx.ravel(), cy.ravel(), cz.ravel()).reshape((len(nodes),) * 3)
-    corners = np.stack(
-        [
-            coarse[i : len(nodes) - 1 + i, j : len(nodes) - 1 + j, k : len(nodes) - 1 + k]
-            for i in (0, 1)
-            for j in (0, 1)
-            for k in (0, 1)
-        ]
-    )
-    margin = margin_cells * np.sqrt(3.0) * coarse_step * (axis[1] - axis[0])
-    near = (np.abs(corners).min(axis=0) < margin) | (corners.min(axis=0) < 0) & (
-        corners.max(axis=0) > 0
-    )
-    # Nearest coarse node of every fine index, then exact values in the cells near the surface.
+    crossing = _dilate(_sign_change_cells(coarse), dilation_cells)
+    # Nearest coarse node of every fine index, then exact values in the crossing cells.
     nearest = np.abs(np.arange(resolution)[:, None] - nodes[None, :]).argmin(axis=1)
     grid = coarse[np.ix_(nearest, nearest, nearest)].copy()
-    mask = np.zeros((resolution,) * 3, dtype=bool)
-    for i, j, k in zip(*np.nonzero(near)):
-        mask[
-            nodes[i] : nodes[i + 1] + 1, nodes[j] : nodes[j + 1] + 1, nodes[k] : nodes[k + 1] + 1
-        ] = True
-    fx, fy, fz = np.nonzero(mask)
+    fx, fy, fz = np.nonzero(_fine_points_of_cells(crossing, nodes, resolution))
     if len(fx):
         grid[fx, fy, fz] = query(fx, fy, fz)
     return grid, axis
+
+
+def _sign_change_cells(values: np.ndarray) -> np.ndarray:
+    """Cells (n-1)^3 of a node grid n^3 whose 8 corners are not all of one strict sign."""
+    n = values.shape[0]
+    corners = [
+        values[i : n - 1 + i, j : n - 1 + j, k : n - 1 + k]
+        for i in (0, 1)
+        for j in (0, 1)
+        for k in (0, 1)
+    ]
+    low, high = np.minimum.reduce(corners), np.maximum.reduce(corners)
+    return (low <= 0) & (high >= 0)
+
+
+def _dilate(mask: np.ndarray, cells: int) -> np.ndarray:
+    """Boolean mask grown by `cells` in every direction (26-connected)."""
+    for _ in range(cells):
+        grown = mask.copy()
+        for axis in range(3):
+            shifted = np.zeros_like(grown)
+            lead = [slice(None)] * 3
+            trail = [slice(None)] * 3
+            lead[axis], trail[axis] = slice(1, None), slice(None, -1)
+            shifted[tuple(lead)] |= grown[tuple(trail)]
+            shifted[tuple(trail)] |= grown[tuple(lead)]
+            grown |= shifted
+        mask = grown
+    return mask
+
+
+def _fine_points_of_cells(cells: np.ndarray, nodes: np.ndarray, resolution: int) -> np.ndarray:
+    """resolution^3 mask of the fine grid points on or inside the marked coarse cells.
+
+    Per axis, `member[p, c]` says whether fine index p lies in coarse cell c (its two
+    nodes included); a point is kept when the product of its three axes' memberships
+    meets a marked cell (three small tensor contractions instead of a loop over cells).
+    """
+    fine = np.arange(resolution)[:, None]
+    member = ((fine >= nodes[None, :-1]) & (fine <= nodes[None, 1:])).astype(np.float32)
+    marked = cells.astype(np.float32)
+    out = np.tensordot(member, marked, axes=([1], [0]))  # (R, C, C)
+    out = np.tensordot(out, member, axes=([1], [1]))  # (R, C, R)
+    out = np.tensordot(out, member, axes=([1], [1]))  # (R, R, R)
+    return out > 0
 
 
 def extract_mesh(
