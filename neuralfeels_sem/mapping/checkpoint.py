@@ -5,7 +5,9 @@ counters, RNG states), the index of the last frame it has seen, a signature of t
 field (class and parameter shapes), its provenance (object and its hash, sensor, classes,
 model config: mapping/provenance.py) and the caller's `extra` dict of plain values. It is
 written to `<path>.tmp` and renamed over `path`, so a run killed mid-write keeps its
-previous checkpoint intact; it is read with `torch.load(weights_only=True)`.
+previous checkpoint intact; it is read with `torch.load(weights_only=True)`. The hash
+tables and their Adam moments, nearly all of its bytes, are stored as
+mapping/checkpoint_codec.py says: exact while that fits 40 MB, else compact.
 """
 
 from __future__ import annotations
@@ -17,12 +19,15 @@ from pathlib import Path
 import torch
 
 from neuralfeels_sem.core.errors import ConfigError, DataError
+from neuralfeels_sem.mapping.checkpoint_codec import INIT_KEY, decode, encode
+from neuralfeels_sem.mapping.field_init import adopt_init_state
 from neuralfeels_sem.mapping.mapper import OnlineMapper
 from neuralfeels_sem.mapping.provenance import NOT_MODEL_SETTINGS, Provenance
 
 # 2 added the provenance; version 1 files still load (task=eval) but cannot be resumed.
-FORMAT_VERSION = 2
-READABLE_VERSIONS = (1, 2)
+# 3 packs the hash tables (checkpoint_codec.py); versions 1 and 2 hold them whole and load.
+FORMAT_VERSION = 3
+READABLE_VERSIONS = (1, 2, 3)
 
 
 def _settings(model_config: dict) -> dict:
@@ -45,8 +50,10 @@ def save_checkpoint(
     extra: dict | None = None,
     model_config: dict | None = None,
     provenance: Provenance | None = None,
+    storage: str = "auto",
 ) -> None:
-    """Write `path` atomically. `extra` and `model_config` must hold plain values only."""
+    """Write `path` atomically. `extra` and `model_config` must hold plain values only;
+    `storage`: auto, exact or compact, how the hash tables are stored (checkpoint_codec.py)."""
     path = Path(path)
     payload = {
         "version": FORMAT_VERSION,
@@ -54,7 +61,7 @@ def save_checkpoint(
         "signature": field_signature(mapper),
         "model_config": model_config,
         "provenance": provenance.to_dict() if provenance is not None else None,
-        "mapper": mapper.state_dict(),
+        "mapper": encode(mapper.state_dict(), mapper.field, mapper.optimizer, storage),
         "extra": dict(extra or {}),
     }
     tmp = path.with_name(path.name + ".tmp")
@@ -146,5 +153,7 @@ def load_checkpoint(
         raise ConfigError(
             f"checkpoint {path} was written with a different model config (model.{', model.'.join(keys)}); resume with the same model settings"
         )
-    mapper.load_state_dict(payload["mapper"])
+    mapper.load_state_dict(decode(payload["mapper"], mapper.field, f"checkpoint {path}"))
+    if (init_rng := payload["mapper"].get(INIT_KEY)) is not None:
+        adopt_init_state(mapper.field, init_rng)  # its untouched rows are the saved run's
     return {"frame_index": int(payload["frame_index"]), "extra": payload["extra"]}

@@ -7,7 +7,8 @@ from omegaconf import DictConfig, OmegaConf
 
 from neuralfeels_sem.configs import to_config
 from neuralfeels_sem.eval.run_scorer import RunScorer
-from neuralfeels_sem.fields.semantic_field import SemanticField, SemanticFieldConfig
+from neuralfeels_sem.fields.semantic_field import SemanticFieldConfig
+from neuralfeels_sem.mapping.field_init import build_field
 from neuralfeels_sem.mapping.mapper import MapperConfig, OnlineMapper
 
 # The field's half-extent is BOUND_MARGIN times the object's bounding radius (computed per
@@ -38,7 +39,9 @@ def build_mapper(cfg: DictConfig, bound: float, device, hand_model=None) -> Onli
     `hand_model` (Sensor.hand_model()) lets mapping.mapper.camera_mask=segment crop to the
     palm's workspace and remove the hand from the camera image.
     """
-    field = SemanticField(to_config(SemanticFieldConfig, cfg.model), bound)
+    # build_field records how the field was initialised: checkpoints then skip the table
+    # rows training never reached (mapping/checkpoint_codec.py).
+    field = build_field(to_config(SemanticFieldConfig, cfg.model), bound)
     optimizer_factory = instantiate(cfg.mapping.optimizer)  # a partial FieldAdam
     return OnlineMapper(
         to_config(MapperConfig, cfg.mapping.mapper), field, optimizer_factory, device, hand_model

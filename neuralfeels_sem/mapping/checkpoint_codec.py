@@ -1,0 +1,253 @@
+"""How a checkpoint stores the field's hash tables and their Adam moments (most of its bytes).
+
+A table row is "updated" once the optimiser has given it a moment (a training point fell
+in one of its cells); the others still hold their initial values and zero moments. For
+each table parameter (2-D or more, at least MIN_PACKED_ROWS rows) the checkpoint stores:
+- which rows were updated (one bit per row);
+- the updated rows of the table and of both moments: `exact` as float32 (a resumed run
+  continues bit for bit), or `compact`: the table in float16, the moments as 8-bit codes
+  of log2(sqrt(v)) and of m / sqrt(v) (bounded by Adam's own arithmetic: |m| <= 7.3 sqrt(v)
+  for betas (0.9, 0.999)), i.e. 4 bytes per value instead of 12, then deflated
+  (mapping/byte_planes.py). float16 moments would underflow (m ~ 1e-8, v ~ 1e-16 at the
+  default learning rate); these codes do not;
+- the other rows: nothing when the field was built by mapping/field_init.build_field
+  (they are drawn again from the random state it was constructed from, checked against a
+  hash of their values), else their values (float32 exact, float16 compact).
+`auto` (what a mapping run writes) is `exact` while that costs at most EXACT_LIMIT_BYTES,
+else `compact`. Measured on the default run (docs/usage.md, bench_checkpoint.py).
+"""
+
+from __future__ import annotations
+
+import hashlib
+import warnings
+
+import numpy as np
+import torch
+from torch import Tensor, nn
+
+from neuralfeels_sem.mapping.byte_planes import pack_planes, unpack_planes
+from neuralfeels_sem.mapping.field_init import init_rng_state, initial_state
+
+STORAGES = ("auto", "exact", "compact")
+# `auto` stays exact up to this many bytes of tables and moments (the issue's 40 MB target).
+EXACT_LIMIT_BYTES = 40_000_000
+# Smaller parameters (the MLPs) are stored as they are: packing them would save nothing.
+MIN_PACKED_ROWS = 4096
+PACKED_KEY = "packed_tables"
+INIT_KEY = "init_rng_state"
+
+
+def encode(state: dict, field: nn.Module, optimizer: torch.optim.Optimizer, storage: str) -> dict:
+    """`state` (an OnlineMapper.state_dict() of `field` trained by `optimizer`) with every
+    large table and its moments packed; the result loads back through `decode`."""
+    if storage not in STORAGES:
+        raise ValueError(f"checkpoint storage {storage!r}: use one of {STORAGES}")
+    tables = _table_parameters(field, optimizer, state["optimizer"]["state"])
+    if not tables:
+        return state
+    init = initial_state(field)
+    updated = {name: _updated_rows(state["optimizer"]["state"][i]) for name, i in tables.items()}
+    replayed = {
+        name: init is not None and _matches_init(state["field"][name], init[name], updated[name])
+        for name in tables
+    }
+    if storage == "auto":
+        storage = (
+            "exact"
+            if _exact_bytes(state, tables, updated, replayed) <= EXACT_LIMIT_BYTES
+            else "compact"
+        )
+    packed_field, packed_optimizer = dict(state["field"]), _copy_optimizer(state["optimizer"])
+    packed = {}
+    for name, index in tables.items():
+        table = packed_field.pop(name)
+        moments = packed_optimizer["state"][index]
+        packed[name] = _pack(table, moments, updated[name], replayed[name], storage)
+        packed[name]["param_index"] = index
+        for key in ("moments", "exp_avg", "exp_avg_sq"):
+            moments.pop(key, None)
+    rng = init_rng_state(field) if any(replayed.values()) else None
+    return {
+        **state,
+        "field": packed_field,
+        "optimizer": packed_optimizer,
+        PACKED_KEY: packed,
+        INIT_KEY: rng,
+    }
+
+
+def decode(state: dict, field: nn.Module, source: str) -> dict:
+    """The OnlineMapper.state_dict() that `encode` packed (`state` unchanged when nothing
+    was); `field` is the one it will load into (built like the saved one); `source` names
+    the checkpoint in the warning given when its initial rows do not replay exactly."""
+    packed = state.get(PACKED_KEY)
+    if not packed:
+        return state
+    rng_state = state.get(INIT_KEY)
+    init = initial_state(field, rng_state) if rng_state is not None else None
+    full_field, full_optimizer = dict(state["field"]), _copy_optimizer(state["optimizer"])
+    for name, entry in packed.items():
+        table, moments = _unpack(entry, None if init is None else init.get(name), name, source)
+        full_field[name] = table
+        full_optimizer["state"][entry["param_index"]].update(moments)
+    rest = {k: v for k, v in state.items() if k not in (PACKED_KEY, INIT_KEY)}
+    return {**rest, "field": full_field, "optimizer": full_optimizer}
+
+
+def _table_parameters(field: nn.Module, optimizer, opt_state: dict) -> dict[str, int]:
+    """Field state_dict key -> optimiser state index of each large table with moments."""
+    names = {id(p): name for name, p in field.named_parameters()}
+    ordered = [p for group in optimizer.param_groups for p in group["params"]]
+    tables = {}
+    for index, p in enumerate(ordered):
+        state = opt_state.get(index, {})
+        has_moments = "moments" in state or "exp_avg_sq" in state
+        if has_moments and p.ndim >= 2 and p.shape[0] >= MIN_PACKED_ROWS and id(p) in names:
+            tables[names[id(p)]] = index
+    return tables
+
+
+def _copy_optimizer(optimizer_state: dict) -> dict:
+    """A copy deep enough to drop or replace per-parameter state entries."""
+    states = {k: dict(v) for k, v in optimizer_state["state"].items()}
+    return {**optimizer_state, "state": states}
+
+
+def _moments(state: dict) -> tuple[Tensor, Tensor]:
+    """(m, v) of one parameter, whichever of FieldAdam's layouts it uses (fields/optim.py)."""
+    if "moments" in state:
+        return state["moments"][:, 0], state["moments"][:, 1]
+    return state["exp_avg"], state["exp_avg_sq"]
+
+
+def _updated_rows(state: dict) -> Tensor:
+    """(rows,) bool, on the CPU: rows with any non-zero moment (never updated otherwise)."""
+    m, v = _moments(state)
+    return ((m != 0) | (v != 0)).reshape(m.shape[0], -1).any(dim=1).cpu()
+
+
+def _matches_init(table: Tensor, init: Tensor, updated: Tensor) -> bool:
+    """Whether the rows never updated still hold exactly their initial values."""
+    return init.shape == table.shape and torch.equal(table.cpu()[~updated], init[~updated])
+
+
+def _exact_bytes(state: dict, tables: dict, updated: dict, replayed: dict) -> int:
+    total = 0
+    for name in tables:
+        table = state["field"][name]
+        row_bytes = table[0].numel() * 4
+        kept = int(updated[name].sum()) if replayed[name] else table.shape[0]
+        total += int(updated[name].sum()) * row_bytes * 2 + kept * row_bytes  # moments + table
+    return total
+
+
+def _digest(rows: Tensor) -> str:
+    return hashlib.sha256(rows.contiguous().numpy().tobytes()).hexdigest()[:16]
+
+
+def _pack(table: Tensor, moments: dict, updated: Tensor, replayed: bool, storage: str) -> dict:
+    table = table.detach().cpu()
+    m, v = (t.cpu()[updated] for t in _moments(moments))
+    rest = table[~updated]
+    entry = {
+        "storage": storage,
+        "shape": list(table.shape),
+        "updated": pack_planes(torch.from_numpy(np.packbits(updated.numpy()))),
+        "layout": "moments" if "moments" in moments else "exp_avg",
+        "untouched_digest": _digest(rest),
+        "untouched": None if replayed else _narrow(rest, storage),
+        "table": _narrow(table[updated], storage),
+    }
+    if storage == "exact":
+        entry.update({"m": m, "v": v})
+    else:
+        codes = quantise_moments(m, v)
+        for key in ("ratio_codes", "scale_codes"):
+            codes[key] = pack_planes(codes[key])
+        entry.update(codes)
+    return entry
+
+
+def _narrow(values: Tensor, storage: str) -> Tensor | dict:
+    """exact: float32 as it is; compact: float16 where every value fits (else float32),
+    as deflated byte planes."""
+    if storage == "exact":
+        return values.float()
+    half = values.half()
+    return pack_planes(half if bool(torch.isfinite(half).all()) else values.float())
+
+
+def _widen(stored: Tensor | dict) -> Tensor:
+    """float32 values from `_narrow`'s either form."""
+    return (unpack_planes(stored) if isinstance(stored, dict) else stored).float()
+
+
+def _unpack(entry: dict, init: Tensor | None, name: str, source: str) -> tuple[Tensor, dict]:
+    shape = entry["shape"]
+    bits = np.unpackbits(unpack_planes(entry["updated"]).numpy(), count=shape[0]).astype(bool)
+    updated = torch.from_numpy(bits)
+    table = torch.empty(shape, dtype=torch.float32)
+    table[updated] = _widen(entry["table"])
+    if entry["untouched"] is not None:
+        table[~updated] = _widen(entry["untouched"])
+    elif init is None:
+        raise ValueError(
+            f"{source}: the never-updated rows of {name} are rebuilt from the field's "
+            "initialisation; build the field with mapping.field_init.build_field to load it"
+        )
+    else:
+        table[~updated] = init[~updated]
+        if _digest(table[~updated]) != entry["untouched_digest"]:
+            warnings.warn(
+                f"{source}: the never-updated rows of {name} were drawn again but differ from "
+                "the saved run's (its field initialisation changed); they hold a fresh draw",
+                stacklevel=2,
+            )
+    if entry["storage"] == "exact":
+        m, v = entry["m"].float(), entry["v"].float()
+    else:
+        m, v = dequantise_moments(entry)
+    full_m, full_v = torch.zeros(shape), torch.zeros(shape)
+    full_m[updated], full_v[updated] = m, v
+    if entry["layout"] == "moments":
+        return table, {"moments": torch.stack([full_m, full_v], dim=1)}
+    return table, {"exp_avg": full_m, "exp_avg_sq": full_v}
+
+
+def quantise_moments(m: Tensor, v: Tensor) -> dict:
+    """8-bit codes of Adam's (m, v): log2(sqrt v) on 254 levels between its smallest and
+    largest value (code 0: v = 0), and m / sqrt(v) on 255 levels symmetric about 0."""
+    s = v.float().sqrt()
+    nonzero = s > 0
+    ratio = torch.where(nonzero, m.float() / torch.where(nonzero, s, 1.0), 0.0)
+    ratio_step = float(ratio.abs().max()) / 127 if ratio.numel() else 0.0
+    ratio_codes = (ratio / (ratio_step or 1.0)).round().clamp(-127, 127).to(torch.int8)
+    log_s = s[nonzero].log2()
+    high = float(log_s.max()) if log_s.numel() else 0.0
+    # 64 octaves at most, so one tiny outlier cannot coarsen every other value's code.
+    low = max(float(log_s.min()), high - 64.0) if log_s.numel() else 0.0
+    log_step = (high - low) / 254 or 1.0
+    scale_codes = torch.zeros(s.shape, dtype=torch.uint8)
+    scale_codes[nonzero] = ((log_s.clamp(min=low) - low) / log_step).round().to(torch.uint8) + 1
+    return {
+        "ratio_codes": ratio_codes,
+        "ratio_step": ratio_step,
+        "scale_codes": scale_codes,
+        "log_low": low,
+        "log_step": log_step,
+    }
+
+
+def dequantise_moments(entry: dict) -> tuple[Tensor, Tensor]:
+    """(m, v) float32 from `quantise_moments`' codes (as they are or as byte planes)."""
+    codes, ratio_codes = entry["scale_codes"], entry["ratio_codes"]
+    if isinstance(codes, dict):
+        codes, ratio_codes = unpack_planes(codes), unpack_planes(ratio_codes)
+    s = torch.where(
+        codes > 0,
+        torch.exp2(entry["log_low"] + (codes.float() - 1.0) * entry["log_step"]),
+        0.0,
+    )
+    m = ratio_codes.float() * entry["ratio_step"] * s
+    return m, s * s
