@@ -18,6 +18,8 @@ import time
 import torch
 import torch.nn.functional as F
 
+from neuralfeels_sem.utils.device import resolve_threads
+
 POINTS = 4096
 NUM_CLASSES = 4
 WARMUP_STEPS = 2
@@ -120,7 +122,9 @@ def _child(queue, log2: int, sparse: bool, device: str, threads: int) -> None:
 def _run_isolated(log2: int, sparse: bool, device: str) -> dict:
     ctx = mp.get_context("spawn")
     queue = ctx.Queue()
-    proc = ctx.Process(target=_child, args=(queue, log2, sparse, device, torch.get_num_threads()))
+    # The thread count a run's `threads=auto` picks (utils/device.py).
+    threads = resolve_threads("auto")
+    proc = ctx.Process(target=_child, args=(queue, log2, sparse, device, threads))
     proc.start()
     try:
         result = queue.get(timeout=300)
@@ -132,7 +136,7 @@ def _run_isolated(log2: int, sparse: bool, device: str) -> dict:
 
 def run() -> dict:
     devices = ["cpu"] + (["cuda"] if torch.cuda.is_available() else [])
-    results: dict = {"points_per_step": POINTS, "threads": torch.get_num_threads()}
+    results: dict = {"points_per_step": POINTS, "threads": resolve_threads("auto")}
     for device in devices:
         for log2, name in ((19, "cpu_default"), (24, "paper")):
             for sparse in (True, False):

@@ -1,16 +1,27 @@
-"""Online mapper speed at the CPU default config: optimiser steps/s and add_frame frames/s.
+"""Online mapper speed at the CPU default config: optimiser steps/s, add_frame frames/s, and
+the realtime factor of a short default run.
 
 The field, optimiser and mapper use the config dataclass defaults, i.e. the command line's
 (SemanticFieldConfig, OptimizerConfig, MapperConfig: 2^19 sparse hash table, FieldAdam, 288
 camera + 96 tactile rays x 10 samples + up to 512 space-prior + 256 material points per
 step; warm-up off). Data: the analytic sphere scene
 (mapping/sphere_scene.py), one 96x72 camera view and four DIGIT touches per frame.
+`steps_per_s` is measured with the thread count a run's `threads=auto` picks
+(utils/device.py), `steps_per_s_by_threads` with 1 and 2 threads side by side (the load
+average beside them: on a shared machine the ratio is the figure to read).
+`default_run` maps `SHORT_RUN_S` seconds of the default run (`python run.py`: sim,
+plushie, realistic perception) in a child process and reads its metrics.json.
 """
 
 from __future__ import annotations
 
+import json
 import os
+import subprocess
+import sys
+import tempfile
 import time
+from pathlib import Path
 
 import torch
 from hydra.utils import instantiate
@@ -19,7 +30,12 @@ from neuralfeels_sem.fields.optim import OptimizerConfig
 from neuralfeels_sem.fields.semantic_field import SemanticField, SemanticFieldConfig
 from neuralfeels_sem.mapping.mapper import MapperConfig, OnlineMapper
 from neuralfeels_sem.mapping.sphere_scene import sphere_frames
-from neuralfeels_sem.utils.device import resolve_device
+from neuralfeels_sem.utils.device import resolve_device, resolve_threads
+from neuralfeels_sem.utils.paths import REPO_DIR
+
+TIMED_STEPS = 20
+SHORT_RUN_S = 3.0  # sensor seconds of the default run (30 frames at 10 fps)
+SHORT_RUN_TIMEOUT_S = 300
 
 
 def default_mapper(num_classes: int = 4, **changes) -> OnlineMapper:
@@ -30,19 +46,81 @@ def default_mapper(num_classes: int = 4, **changes) -> OnlineMapper:
     return OnlineMapper(config, field, factory, resolve_device("cpu"))
 
 
+def _time_steps(mapper: OnlineMapper, steps: int) -> tuple[float, float, int]:
+    """(wall s, CPU s of all threads) per step over `steps` steps, and points per step."""
+    start, cpu_start = time.perf_counter(), time.process_time()
+    losses = mapper.optimize(steps)
+    return (
+        (time.perf_counter() - start) / steps,
+        (time.process_time() - cpu_start) / steps,
+        int(losses["points"]),
+    )
+
+
+def _steps_by_threads(mapper: OnlineMapper) -> dict:
+    """Steps/s with 1 and 2 torch threads, alternated (1, 2, 1, 2) so load drifts hit both."""
+    before = torch.get_num_threads()
+    timings: dict[int, list[tuple[float, float]]] = {1: [], 2: []}
+    try:
+        for threads in (1, 2, 1, 2):
+            torch.set_num_threads(threads)
+            wall, cpu, _ = _time_steps(mapper, TIMED_STEPS // 2)
+            timings[threads].append((wall, cpu))
+    finally:
+        torch.set_num_threads(before)
+    out = {}
+    for threads, pairs in timings.items():
+        wall = sum(w for w, _ in pairs) / len(pairs)
+        cpu = sum(c for _, c in pairs) / len(pairs)
+        out[str(threads)] = {
+            "steps_per_s": round(1.0 / wall, 2),
+            "step_cpu_ms": round(1000 * cpu, 1),
+        }
+    return out
+
+
+def _short_default_run() -> dict:
+    """Realtime factor of the default run over SHORT_RUN_S sensor seconds (a child process)."""
+    with tempfile.TemporaryDirectory(prefix="bench_map_") as out:
+        command = [
+            sys.executable, "run.py", f"sensor.duration_s={SHORT_RUN_S}", "viz.plots=false",
+            f"hydra.run.dir={out}",
+        ]  # fmt: skip
+        start = time.perf_counter()
+        done = subprocess.run(
+            command, cwd=REPO_DIR, capture_output=True, text=True, timeout=SHORT_RUN_TIMEOUT_S
+        )
+        process_s = time.perf_counter() - start
+        metrics_path = Path(out) / "metrics.json"
+        if done.returncode != 0 or not metrics_path.exists():
+            tail = (done.stderr or done.stdout).strip().splitlines()[-1:] or ["no output"]
+            return {"error": f"exit {done.returncode}: {tail[0]}"}
+        metrics = json.loads(metrics_path.read_text())
+    return {
+        "sensor_s": SHORT_RUN_S,
+        "realtime_factor": round(metrics["realtime_factor"], 3),
+        "loop_wall_s": round(metrics["wall_s"], 1),
+        "process_wall_s": round(process_s, 1),
+        "optimizer_steps": metrics["trained_on"]["optimizer_steps"],
+        "matching_mean_class_pct": metrics["matching_mean_class_pct"],
+        "baseline_majority_mean_class_pct": metrics["baseline_majority"].get(
+            "matching_mean_class_pct"
+        ),
+        "threads": metrics.get("machine", {}).get("torch_threads"),
+    }
+
+
 def run() -> dict:
     torch.manual_seed(0)
+    threads_before = torch.get_num_threads()
+    torch.set_num_threads(resolve_threads("auto"))  # what a run uses by default
     frames = sphere_frames(12, touches_per_frame=4)
     mapper = default_mapper(warmup_steps=0)
     for frame, labels in frames[:4]:
         mapper.add_frame(frame, labels)  # fills the window; also warms up the allocator
 
-    steps = 20
-    start, cpu_start = time.perf_counter(), time.process_time()
-    losses = mapper.optimize(steps)
-    step_s = (time.perf_counter() - start) / steps
-    # CPU seconds (all threads) per step: comparable across runs on a shared, loaded machine.
-    step_cpu_s = (time.process_time() - cpu_start) / steps
+    step_s, step_cpu_s, points = _time_steps(mapper, TIMED_STEPS)
+    by_threads = _steps_by_threads(mapper)
 
     start = time.perf_counter()
     for frame, labels in frames[4:]:
@@ -53,14 +131,20 @@ def run() -> dict:
     for frame, _ in frames[4:]:
         mapper.frame_points(frame, frame.world_T_object)
     ingest_s = (time.perf_counter() - start) / len(frames[4:])
-    return {
-        "points_per_step": int(losses["points"]),
+    result = {
+        "points_per_step": points,
         "steps_per_s": round(1.0 / step_s, 2),
         "step_ms": round(1000 * step_s, 1),
+        # CPU seconds (all threads) per step: comparable across runs on a shared, loaded machine.
         "step_cpu_ms": round(1000 * step_cpu_s, 1),
+        "steps_per_s_by_threads": by_threads,
         "load_avg_1min": round(os.getloadavg()[0], 2),
         "steps_per_frame": mapper.config.steps_per_frame,
         "add_frame_per_s": round(1.0 / frame_s, 2),
         "frame_points_ms": round(1000 * ingest_s, 1),
         "threads": torch.get_num_threads(),
     }
+    torch.set_num_threads(threads_before)
+    result["default_run"] = _short_default_run()
+    result["load_avg_1min_end"] = round(os.getloadavg()[0], 2)
+    return result
