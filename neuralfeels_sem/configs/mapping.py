@@ -36,8 +36,9 @@ class MappingConfig:
     resume: str | None = None  # a checkpoint.pt to continue a killed run from
     # At sensor.pace=realtime: a frame due longer ago than this when the mapper could take
     # it is dropped (counted in metrics.json frames_dropped), so the map never trails the
-    # world by more; about one mapped frame plus perception on the 2-core CPU (docs/usage.md).
-    max_lag_s: float = 1.0
+    # world by more; room for one mapped frame plus its perception on the 2-core CPU under
+    # load (docs/usage.md).
+    max_lag_s: float = 2.0
     optimizer: OptimizerConfig = field(default_factory=OptimizerConfig)
     mapper: MapperConfig = field(default_factory=MapperConfig)
     tracker: TrackerConfig = field(default_factory=TrackerConfig)  # read when pose tracks

@@ -201,8 +201,11 @@ class OnlineMapper:
         frame: Frame,
         touch_labels: Mapping[str, TouchLabel] | None = None,
         world_T_object: np.ndarray | None = None,
+        steps: int | None = None,
     ) -> dict[str, float]:
-        """Ingest one frame, then run steps_per_frame (first time: warmup_steps) steps."""
+        """Ingest one frame, then run `steps` optimiser steps (None: steps_per_frame, the
+        first time warmup_steps; a realtime stream passes steps_per_frame, since the world
+        does not wait for a warm-up)."""
         pose = frame.world_T_object if world_T_object is None else world_T_object
         if not np.isfinite(pose).all():
             raise NumericalError(
@@ -217,9 +220,11 @@ class OnlineMapper:
         self.log.frames_seen += 1
         if not self.memory.has_data:
             return dict.fromkeys(LOSS_KEYS, 0.0)
-        steps = self.config.steps_per_frame
-        if not self.log.warmed_up:
-            steps, self.log.warmed_up = max(steps, self.config.warmup_steps), True
+        if steps is None:
+            steps = self.config.steps_per_frame
+            if not self.log.warmed_up:
+                steps = max(steps, self.config.warmup_steps)
+        self.log.warmed_up = True
         return self.optimize(steps)
 
     @property

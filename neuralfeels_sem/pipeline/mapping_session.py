@@ -28,7 +28,6 @@ from collections.abc import Sequence
 from dataclasses import dataclass
 from pathlib import Path
 
-import numpy as np
 from tqdm import tqdm
 
 from neuralfeels_sem.core.errors import NoDataError
@@ -38,10 +37,12 @@ from neuralfeels_sem.mapping.checkpoint import load_checkpoint, save_checkpoint
 from neuralfeels_sem.mapping.mapper import OnlineMapper
 from neuralfeels_sem.mapping.pose_source import PoseSource
 from neuralfeels_sem.mapping.provenance import Provenance
+from neuralfeels_sem.pipeline.background_eval import BackgroundEval
 from neuralfeels_sem.pipeline.interrupts import Interrupted, StopOnSignal
 from neuralfeels_sem.pipeline.observers import FrameObserver
 from neuralfeels_sem.pipeline.pace import PerceivedFrame, StreamEnd
 from neuralfeels_sem.pipeline.producer import FrameProducer
+from neuralfeels_sem.pipeline.run_outputs import write_snapshot
 from neuralfeels_sem.pipeline.segments import Segment, load_segments, run_totals
 from neuralfeels_sem.sensors.base import Sensor
 from neuralfeels_sem.utils.atomic import atomic_write
@@ -102,6 +103,7 @@ class MappingSession:
         self.segment = Segment()
         self.last_index = -1
         self.failure: BaseException | None = None  # the producer's error, if it failed
+        self.background: BackgroundEval | None = None  # realtime: scoring off the mapper's path
         self.stop = StopOnSignal(out)
         self.checkpoint_path = out / "checkpoint.pt"
         self.snapshots_dir = out / "progression"
@@ -185,23 +187,52 @@ class MappingSession:
         )
         bar = tqdm(total=total, desc="map", unit="frame", dynamic_ncols=True)
         bar.update(self.last_index + 1)
+        if sensor.pace == "realtime":
+            self.background = BackgroundEval(self.scorer, self._write_snapshot)
         producer.start()
         try:
             while not self.stop.requested:
                 item = producer.queue.get(timeout=0.0 if self._idle_steps(producer) else 0.1)
+                self._show_scores(self.background.collect() if self.background else [], bar)
                 if item is None:
                     continue
                 self.segment.frames_dropped += item.dropped_before
                 bar.update(item.dropped_before + isinstance(item, PerceivedFrame))
                 if isinstance(item, StreamEnd):
-                    self._end_of_stream(item, total if producer.clock is not None else None)
+                    self._end_of_stream(item, total if producer.clock is not None else None, bar)
                     break
                 if self._too_late(producer, item):
                     continue
-                self._map(item, total, snapshot_every, wall_start, bar)
+                realtime = producer.clock is not None
+                self._map(item, realtime, total, snapshot_every, wall_start, bar)
         finally:
             producer.stop()
+            self._close_background(bar)
             bar.close()
+
+    def _drain_background(self, bar) -> None:
+        if self.background is not None:
+            self._show_scores(self.background.drain(), bar)
+
+    def _close_background(self, bar) -> None:
+        """Wait for the realtime scoring passes still running and report them."""
+        if self.background is not None:
+            background, self.background = self.background, None
+            try:
+                self._show_scores(background.drain(), bar)
+            finally:
+                background.close()
+
+    def _show_scores(self, passes: list, bar) -> None:
+        """Tell the observers of finished scoring passes and show the latest on the bar."""
+        for frame_index, time_s, scores in passes:
+            for observer in self.observers:
+                observer.on_scores(frame_index, scores, self.mapper)
+            bar.set_postfix(
+                t=f"{time_s:.1f}s",
+                fps=f"{self.segment.frames / max(self.segment.wall_s, 1e-9):.2f}",
+                mean_class="n/a" if scores is None else f"{scores['matching_mean_class_pct']:.1f}%",
+            )
 
     def _idle_steps(self, producer: FrameProducer) -> bool:
         """Realtime: one optimiser step while no new frame has come (True: one ran)."""
@@ -226,7 +257,7 @@ class MappingSession:
         self.segment.add_lag(max(0.0, lag))
         return False
 
-    def _end_of_stream(self, end: StreamEnd, realtime_total: int | None) -> None:
+    def _end_of_stream(self, end: StreamEnd, realtime_total: int | None, bar) -> None:
         """A failed producer's error is kept; a realtime stream whose last frames were
         dropped (`realtime_total`: the sensor's frame count) is scored and snapshotted at
         the last frame mapped."""
@@ -235,52 +266,61 @@ class MappingSession:
             return
         last_time_s = self.segment.last_time_s
         total = realtime_total
-        if total is not None and 0 <= self.last_index < total - 1 and last_time_s is not None:
-            self._scores_and_snapshot(self.last_index, last_time_s, None)
+        if total is None or not 0 <= self.last_index < total - 1 or last_time_s is None:
+            return
+        self._close_background(bar)
+        curve = self.scorer.curve
+        if not curve or curve[-1][0] != self.last_index:
+            self._show_scores(
+                [(self.last_index, last_time_s, self._score(self.last_index, last_time_s))], bar
+            )
+            self._snapshot(last_time_s, self.last_index)
 
     def _map(
-        self, item: PerceivedFrame, total: int | None, snapshot_every: int, wall_start: float, bar
+        self,
+        item: PerceivedFrame,
+        realtime: bool,
+        total: int | None,
+        snapshot_every: int,
+        wall_start: float,
+        bar,
     ) -> None:
         """Map one frame, then score, snapshot and checkpoint where their cadence falls."""
         frame, previous = item.frame, self.last_index
-        self._add(frame, item.labels)
+        # Realtime: no warm-up block (the world does not wait); idle steps make up for it.
+        self._add(frame, item.labels, self.mapper.config.steps_per_frame if realtime else None)
         is_last = total is not None and frame.index == total - 1
 
         def crossed(every: int) -> bool:  # a multiple of `every` reached (or passed: realtime)
             return frame.index // every > previous // every
 
-        if crossed(self.settings.every_k_frames) or is_last:
-            self._scores_and_snapshot(frame.index, frame.time_s, bar, wall_start)
-        if crossed(snapshot_every) or is_last:
-            self._snapshot(frame.time_s, frame.index)
+        self.segment.wall_s = time.perf_counter() - wall_start
+        score = crossed(self.settings.every_k_frames) or is_last
+        snapshot = crossed(snapshot_every) or is_last
+        if self.background is not None and (score or snapshot):
+            field_T_gt = self.pose_source.field_T_gt_object()
+            self.background.submit(
+                self.mapper.field, frame.index, frame.time_s, field_T_gt, score, snapshot
+            )
+        elif score or snapshot:
+            if score:
+                self._show_scores(
+                    [(frame.index, frame.time_s, self._score(frame.index, frame.time_s))], bar
+                )
+            if snapshot:
+                self._snapshot(frame.time_s, frame.index)
         every = self.settings.checkpoint_every
-        if every and crossed(every):
-            self.segment.wall_s = time.perf_counter() - wall_start
+        # Realtime maps a frame now and then: a checkpoint every `every` frames mapped.
+        if every and (self.segment.frames % every == 0 if realtime else crossed(every)):
+            self._drain_background(bar)  # the checkpoint records the scorer's curves
             self._checkpoint()
 
-    def _scores_and_snapshot(
-        self, frame_index: int, time_s: float, bar, wall_start: float | None = None
-    ) -> None:
-        """Score the field, tell the observers, show the figures on the bar; without a bar
-        (the end of a realtime stream) also write the snapshot."""
-        scores = self._score(frame_index, time_s)
-        for observer in self.observers:
-            observer.on_scores(frame_index, scores, self.mapper)
-        if bar is None:
-            self._snapshot(time_s, frame_index)
-            return
-        elapsed = time.perf_counter() - wall_start
-        bar.set_postfix(
-            t=f"{time_s:.1f}s",
-            fps=f"{self.segment.frames / max(elapsed, 1e-9):.2f}",
-            mean_class="n/a" if scores is None else f"{scores['matching_mean_class_pct']:.1f}%",
-        )
-
-    def _add(self, frame: Frame, labels: dict) -> None:
-        """Log the frame's classified touches, estimate its pose and give it to the mapper."""
+    def _add(self, frame: Frame, labels: dict, steps: int | None) -> None:
+        """Log the frame's classified touches, estimate its pose and give it to the mapper
+        (`steps`: see OnlineMapper.add_frame)."""
         self.scorer.log_touches(frame, labels)
         world_T_object = self.pose_source.estimate(frame, self.mapper)
-        self.mapper.add_frame(frame, labels, world_T_object=world_T_object)
+        self.mapper.add_frame(frame, labels, world_T_object=world_T_object, steps=steps)
         self.segment.add_frame(frame.index, frame.time_s)
         self.last_index = frame.index
         for observer in self.observers:
@@ -308,20 +348,14 @@ class MappingSession:
 
     def _snapshot(self, time_s: float, frame_index: int) -> None:
         """Progression snapshots go to disk at once, so a resumed run still has the early ones."""
-        maps = self.scorer.snapshot(self.mapper.field, self.pose_source.field_T_gt_object())
+        field_T_gt = self.pose_source.field_T_gt_object()
+        self._write_snapshot(self.mapper.field, field_T_gt, time_s, frame_index)
+
+    def _write_snapshot(self, field, field_T_gt, time_s: float, frame_index: int) -> None:
+        maps = self.scorer.snapshot(field, field_T_gt)
         if maps is None:
             return
-        with atomic_write(self.snapshots_dir / f"{frame_index:06d}.npz", "wb") as f:
-            np.savez_compressed(
-                f,
-                time_s=time_s,
-                gt=maps["gt"],
-                pred=maps["pred"],
-                diff=maps["diff"],
-                shade=maps["shade"],
-                entropy=maps["entropy"],
-                matching_pct_image=maps["matching_pct_image"],
-            )
+        write_snapshot(self.snapshots_dir / f"{frame_index:06d}.npz", time_s, maps)
 
     def _finish(self, baseline: dict) -> dict:
         """Fail on a field that saw no data; final checkpoint, scores and mesh."""

@@ -113,6 +113,12 @@ class FrameQueue:
                 self._items.append(end)
                 self._cond.notify_all()
 
+    def wait_empty(self, stop: threading.Event) -> None:
+        """Until the mapper has taken every frame (or `stop` is set)."""
+        with self._cond:
+            while self._items and not stop.is_set():
+                self._cond.wait(0.1)
+
     def ready(self) -> bool:
         """Whether an item is waiting."""
         with self._cond:

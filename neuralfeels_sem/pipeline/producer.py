@@ -73,8 +73,17 @@ class FrameProducer:
 
     def _frames(self) -> Iterator[Frame]:
         if self.clock is not None:
-            return self.sensor.frames_from_clock(self.clock.due_index)
+            return self.sensor.frames_from_clock(self._next_due_index)
         return (f for f in self.sensor.frames() if f.index > self.after_index)
+
+    def _next_due_index(self) -> int:
+        """Realtime: the frame to make next, once the mapper has taken the last one.
+
+        Perceiving frames the mapper will never take would take the CPU from the mapper
+        (on 2 cores); this way the next frame is made while the mapper maps the last one.
+        """
+        self.queue.wait_empty(self._stop)
+        return self.clock.due_index()
 
     def _run(self) -> None:
         dropped, expected, first = 0, self.after_index + 1, True

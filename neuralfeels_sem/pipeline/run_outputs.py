@@ -1,5 +1,6 @@
 """Files of the run-output contract (docs/design.md) that are not pictures: metrics.json,
-touches.csv, and what a timing depends on. Both files are written atomically."""
+touches.csv, progression snapshots, and what a timing depends on. Every file is written
+atomically."""
 
 from __future__ import annotations
 
@@ -54,6 +55,21 @@ def write_touches(
                     f"{confidence:.3f}",
                 ]
             )
+
+
+def write_snapshot(path: Path, time_s: float, maps: dict) -> None:
+    """One progression snapshot (the image-form maps of the field at `time_s`)."""
+    with atomic_write(path, "wb") as f:
+        np.savez_compressed(
+            f,
+            time_s=time_s,
+            gt=maps["gt"],
+            pred=maps["pred"],
+            diff=maps["diff"],
+            shade=maps["shade"],
+            entropy=maps["entropy"],
+            matching_pct_image=maps["matching_pct_image"],
+        )
 
 
 def json_default(value):
