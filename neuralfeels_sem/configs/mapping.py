@@ -17,6 +17,7 @@ from neuralfeels_sem.mapping.mapper import MapperConfig
 from neuralfeels_sem.mapping.pose_source import POSE_SOURCES
 from neuralfeels_sem.mapping.pose_tracker import TrackerConfig
 from neuralfeels_sem.perception.tactile_depth import TactileDepthConfig
+from neuralfeels_sem.pipeline.touch_advisor import TouchAdvisorConfig
 
 __all__ = [
     "MapperConfig",
@@ -42,6 +43,8 @@ class MappingConfig:
     optimizer: OptimizerConfig = field(default_factory=OptimizerConfig)
     mapper: MapperConfig = field(default_factory=MapperConfig)
     tracker: TrackerConfig = field(default_factory=TrackerConfig)  # read when pose tracks
+    # where to touch next: advice for sensor.policy=active, suggestions on other rigs
+    advisor: TouchAdvisorConfig = field(default_factory=TouchAdvisorConfig)
 
     def __post_init__(self) -> None:
         if self.pose not in POSE_SOURCES:

@@ -9,7 +9,9 @@ from neuralfeels_sem.core.digit import MAX_PENETRATION_M
 from neuralfeels_sem.core.hand import FINGERS
 from neuralfeels_sem.core.limits import check_duration, check_rate
 from neuralfeels_sem.sensors.base import check_pace
+from neuralfeels_sem.sensors.sim.sim_sensor import POLICIES
 from neuralfeels_sem.sim.depth_noise import DEPTH_NOISE_MODELS, RealSenseNoiseConfig
+from neuralfeels_sem.sim.touch_planner import TouchPlannerConfig
 
 
 def _check_firmness(name: str, firmness: dict[str, float]) -> None:
@@ -95,11 +97,17 @@ class SimSensorConfig:
     seed: int = 0  # the yaml sets ${seed}
     tactile: SimTactileConfig = field(default_factory=SimTactileConfig)
     rgbd: SimRgbdConfig = field(default_factory=SimRgbdConfig)
+    # scripted: the gait's sampled touches; active: touches ranked by the map's uncertainty
+    # and novelty, with regrasps (sim/touch_planner.py, docs/simulation.md)
+    policy: str = "scripted"
+    planner: TouchPlannerConfig = field(default_factory=TouchPlannerConfig)
     # offline: every frame is mapped, however long it takes; realtime: frame i is due at
     # i / fps seconds of wall time and the mapper takes the newest (docs/usage.md).
     pace: str = "offline"
 
     def __post_init__(self) -> None:
+        if self.policy not in POLICIES:
+            raise ValueError(f"sensor.policy={self.policy!r}: use one of {', '.join(POLICIES)}")
         check_duration("sensor.duration_s", self.duration_s)
         check_rate("sensor.fps", self.fps)
         check_pace(self.pace)

@@ -47,7 +47,8 @@ from neuralfeels_sem.sim.rig_params import (
 from neuralfeels_sem.sim.rig_probes import GEL_GRID
 from neuralfeels_sem.sim.trajectory import perpendicular_basis
 
-# A sampled touch: (-contact rays, splay, |shift|, draw order, posture); sorted on [:4].
+# A sampled touch: (-contact rays, splay, |shift|, draw order, object-frame point, posture);
+# sorted on [:4].
 Touch = tuple
 
 
@@ -70,13 +71,20 @@ class ContactSampler:
         the room they leave the other fingers. The first that the IK presses to the
         firmness and that is still clear is the touch. If only neighbours are in the way,
         the finger claims the best blocked touch instead (see GaitingPolicy.busy).
+        With a planner (sensor.policy=active, sim/touch_planner.py), more touches are
+        screened and ranked by the map's touch score instead of by room: the best-scoring
+        one that verifies is the touch.
         """
         postures = self._draw_postures(finger, touchdown_s, rng)
         world_T_object = self.trajectory.pose(touchdown_s)
         self.scene.set_object_pose(world_T_object, self._probe)
         press = self.press.get(finger, 0.0)
         firm = [(b.finger, b.posture) for b in busy if b.firm]
-        touches = self._screen(finger, postures, world_T_object[:3, 3], press)
+        planner = getattr(self, "planner", None)
+        enough = ENOUGH_TOUCHES if planner is None else planner.config.candidates
+        touches = self._screen(finger, postures, world_T_object, press, enough)
+        if planner is not None and touches:
+            touches = self._by_score(planner, touches, touchdown_s)
         candidates, blocked = self._split_clear(finger, touches, firm)
         if not candidates:
             if blocked:
@@ -86,12 +94,21 @@ class ContactSampler:
                 self.policy.claims[finger] = claim
                 self._touched[finger].append(claim)
             return None
-        head = self._rank_by_room(finger, candidates[:COMPAT_CANDIDATES], busy)
-        order = (head + candidates[COMPAT_CANDIDATES:])[:VERIFY_CANDIDATES]
-        contact = self._verify(finger, order, press, firm, world_T_object)
+        order = candidates  # active: best score first, as _by_score left them
+        if planner is None:
+            head = self._rank_by_room(finger, candidates[:COMPAT_CANDIDATES], busy)
+            order = head + candidates[COMPAT_CANDIDATES:]
+        contact = self._verify(finger, order[:VERIFY_CANDIDATES], press, firm, world_T_object)
         if contact is None:
             self._touched[finger].append(candidates[0][-1])  # nearly: look around there next time
         return contact
+
+    def _by_score(self, planner, touches: list[Touch], touchdown_s: float) -> list[Touch]:
+        """Screened touches best score first (sensor.policy=active); may start a regrasp."""
+        order, scores = planner.rank(np.array([c[4] for c in touches]))
+        if planner.note_choice(touchdown_s, float(scores.max())):
+            self._regrasp(touchdown_s)
+        return [touches[i] for i in order]
 
     def _draw_postures(
         self, finger: str, touchdown_s: float, rng: np.random.Generator
@@ -113,10 +130,21 @@ class ContactSampler:
         return np.clip(postures, box[:, 0], box[:, 1])
 
     def _screen(
-        self, finger: str, postures: np.ndarray, centre: np.ndarray, press: float
+        self,
+        finger: str,
+        postures: np.ndarray,
+        world_T_object: np.ndarray,
+        press: float,
+        enough: int = ENOUGH_TOUCHES,
     ) -> list[Touch]:
-        """Postures whose gel, shifted along its pad by under MAX_SHIFT_M, meets the object; best first."""
+        """Postures whose gel, shifted along its pad by under MAX_SHIFT_M, meets the object; best first.
+
+        Stops once `enough` qualify. Each carries the object-frame surface point its gel
+        meets first.
+        """
         model, data = self.scene.model, self._probe
+        centre = world_T_object[:3, 3]
+        object_T_world = invert_pose(world_T_object)
         i = FINGERS.index(finger)
         joints = slice(4 * i, 4 * i + 4)
         within = self.obj.bounds_radius + GEL_WIDTH_M + MAX_SHIFT_M
@@ -128,15 +156,19 @@ class ContactSampler:
             to_centre = centre - gel
             if to_centre @ to_centre > within * within or to_centre @ pad <= 0.0:
                 continue  # out of reach, or the pad faces away from the object
-            reach = self._reach(finger, data, points=False)[0]
+            reach, hits, _ = self._reach(finger, data)
             deepest = reach.max()
             shift = press - deepest  # move along the pad by this to press by `press`
             rays = int(np.count_nonzero(reach >= deepest - press))
             if not -MAX_SHIFT_M < shift < MAX_SHIFT_M or rays < MIN_CONTACT_RAYS:
                 continue
             splay = round(abs(q[0] - NOMINAL_Q[4 * i]) / 0.1)
-            touches.append((-min(rays, GOOD_CONTACT_RAYS), splay, abs(shift), len(touches), q))
-            if len(touches) >= ENOUGH_TOUCHES:
+            # the surface point the gel meets first (its deepest ray's hit)
+            point = object_T_world[:3, :3] @ hits[int(np.argmax(reach))] + object_T_world[:3, 3]
+            touches.append(
+                (-min(rays, GOOD_CONTACT_RAYS), splay, abs(shift), len(touches), point, q)
+            )
+            if len(touches) >= enough:
                 break  # a wide object: plenty to choose from
         touches.sort(key=lambda c: c[:4])
         return touches
@@ -222,6 +254,8 @@ class ContactSampler:
     def _library(self, finger: str, segment: int = 0) -> np.ndarray:
         """Postures of the finger's SAMPLE_BOX whose gel comes near the object as it turns.
 
+        (About the segment's centre: the grasp centre, shifted where a regrasp slid the object.)
+
         The object sweeps a solid of revolution about the rotation axis; at each height
         along the axis its surface lies between its narrowest and widest radius (24 sectors).
         Postures whose gel centre lies in that band (widened by LIBRARY_INSIDE_M and
@@ -247,7 +281,7 @@ class ContactSampler:
             data.qpos[4 * i : 4 * i + 4] = q
             mujoco.mj_kinematics(model, data)
             gel, pad = self._gel(model, data, finger)
-            rel = gel - self.centre
+            rel = gel - self.trajectory.segment_centre(segment)
             height = rel @ axis
             radial = rel - height * axis
             r = np.linalg.norm(radial)
@@ -262,8 +296,9 @@ class ContactSampler:
     def _profile(self, segment: int, axis: np.ndarray) -> tuple[int, np.ndarray, np.ndarray]:
         """The swept solid of a segment: lowest height bin, per bin narrowest and widest radius."""
         if segment not in self._profiles:
-            pose = self.trajectory.pose(self.trajectory.segment_start(segment))
-            rel = np.asarray(self.obj.mesh.vertices) @ pose[:3, :3].T + pose[:3, 3] - self.centre
+            pose = self.trajectory.pose(self.trajectory.settled(segment))
+            centre = self.trajectory.segment_centre(segment)
+            rel = np.asarray(self.obj.mesh.vertices) @ pose[:3, :3].T + pose[:3, 3] - centre
             height = rel @ axis
             radial = rel - np.outer(height, axis)
             u, v = perpendicular_basis(axis)

@@ -17,7 +17,9 @@ they take turns (GaitingPolicy.busy).
 
 The tuning constants live in rig_params.py, the gel ray casts and finger gaps in
 rig_probes.py, contact sampling in contact_sampler.py, press control and keeping the
-fingers apart in finger_control.py (all three mixins of SimRig).
+fingers apart in finger_control.py (all three mixins of SimRig). With a TouchPlanner
+(sensor.policy=active, touch_planner.py) new contacts go where the map's advice scores
+highest, and the object is regrasped (turned and slid) when no reachable touch scores well.
 """
 
 from __future__ import annotations
@@ -56,6 +58,7 @@ from neuralfeels_sem.sim.rig_params import (
 )
 from neuralfeels_sem.sim.rig_probes import GEL_GRID_RAYS, RigProbes
 from neuralfeels_sem.sim.scene import SimScene
+from neuralfeels_sem.sim.touch_planner import TouchPlanner
 from neuralfeels_sem.sim.trajectory import ObjectTrajectory
 
 
@@ -89,6 +92,7 @@ class SimRig(ContactSampler, FingerControl, RigProbes):
         seed: int = 0,
         alternate_axis: Sequence[float] | None = None,
         alternate_every_s: float = 5.0,
+        planner: TouchPlanner | None = None,
     ) -> None:
         unknown = set(fingers) - set(FINGERS)
         if unknown or not fingers:
@@ -110,6 +114,7 @@ class SimRig(ContactSampler, FingerControl, RigProbes):
         self.period_s, self.contact_fraction = period_s, contact_fraction
         self._world_T_palm, self._world_T_camera = world_T_palm, world_T_camera
         self.seed = seed
+        self.planner = planner  # sensor.policy=active: touches ranked by the map's advice
         self.scene: SimScene | None = None
 
     # ------------------------------------------------------------------ set-up
@@ -188,6 +193,22 @@ class SimRig(ContactSampler, FingerControl, RigProbes):
         centre += GRASP_REACH_M * palm[:3, 2]
         lowest = PALM_CLEARANCE_M + half_up + wobble_room
         return centre + max(0.0, lowest - (centre - palm_face) @ up) * up
+
+    def _regrasp(self, t: float) -> None:
+        """Turn and slide the object in the grasp as the planner asks (sensor.policy=active).
+
+        The new stretch starts at t or the latest time already planned for; the finger
+        libraries and swept profiles of the stretches it replaces are dropped.
+        """
+        start = max(t, self.trajectory.horizon_s)
+        move = self.planner.regrasp_move(
+            self.trajectory.pose(start), self.scene.world_T_palm[:3, 0]
+        )
+        if move is None:
+            return
+        k, _ = self.trajectory.regrasp(start, *move)
+        self._libraries = {key: v for key, v in self._libraries.items() if key[1] < k}
+        self._profiles = {s: v for s, v in self._profiles.items() if s < k}
 
     def state_at(self, t: float) -> RigState:
         if self.scene is None:

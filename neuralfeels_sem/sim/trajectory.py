@@ -7,6 +7,12 @@ sways by a millimetre, as a real rotation policy's object does.
 Optionally the object turns about `axis` and `alternate_axis` in turn, `alternate_every_s`
 seconds each, as a multi-axis rotation policy does: about one axis the fingers only ever
 touch a band round the object; a second axis brings its poles round to them.
+
+`regrasp(t, axis, offset)` (sensor.policy=active, sim/touch_planner.py) starts a new
+stretch at t: the object turns about `axis` from then on and its centre slides to
+`offset` from the grasp centre over `slide_s` (as a hand that regrasps an object larger
+than its reach). Poses already asked for never change: a regrasp starts no earlier than
+the latest time queried.
 """
 
 from __future__ import annotations
@@ -27,7 +33,7 @@ def perpendicular_basis(axis: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
 
 
 class ObjectTrajectory:
-    """world_T_object(t) for an object turning about `axis` through `centre`."""
+    """world_T_object(t) for an object turning about `axis` through `centre` (+ the grasp offset)."""
 
     def __init__(
         self,
@@ -41,6 +47,7 @@ class ObjectTrajectory:
         seed: int = 0,
         alternate_axis: np.ndarray | None = None,
         alternate_every_s: float = 5.0,
+        slide_s: float = 1.0,
     ) -> None:
         self.centre = np.asarray(centre, np.float64)
         axis = np.asarray(axis, np.float64)
@@ -57,44 +64,141 @@ class ObjectTrajectory:
             if alternate_every_s <= 0:
                 raise ValueError(f"alternate_every_s must be > 0, got {alternate_every_s}")
             self.axes.append(other / np.linalg.norm(other))
+        if slide_s <= 0:
+            raise ValueError(f"slide_s must be > 0, got {slide_s}")
         self.segment_s = float(alternate_every_s) if len(self.axes) > 1 else np.inf
         self.speed = np.deg2rad(speed_deg_s)
         self.wobble = np.deg2rad(wobble_deg)
-        self.wobble_hz, self.sway_m = wobble_hz, sway_m
+        self.wobble_hz, self.sway_m, self.slide_s = wobble_hz, sway_m, float(slide_s)
         self.initial_rotation = (
             np.eye(3) if initial_rotation is None else np.asarray(initial_rotation, float)
         )
         self._u, self._v = perpendicular_basis(self.axis)
         self._phase = np.random.default_rng(seed).uniform(0, 2 * np.pi, 3)
-        # Orientation (before the wobble) at the start of each segment, extended on demand.
-        self._segment_starts = [self.initial_rotation]
+        # Stretches of turning about one axis, extended on demand; a regrasp starts one.
+        zero = np.zeros(3)
+        self._segments = [_Segment(0.0, self.axis, self.initial_rotation, zero, zero, 0)]
+        self.horizon_s = 0.0  # latest time asked for: a regrasp starts no earlier
+        self.regrasps: list[tuple[float, np.ndarray, np.ndarray]] = []  # (time, axis, offset)
+
+    def _extend(self, t: float) -> None:
+        """Add the alternation's stretches up to time t."""
+        while True:
+            last = self._segments[-1]
+            end = last.base_s + (last.periodic + 1) * self.segment_s
+            if t < end:
+                return
+            # the stretch before the last one gives the next axis (ping-pong); first: axes[1]
+            prior = self._segments[-2].axis if len(self._segments) > 1 else self.axes[1]
+            step = rotation_matrix(last.axis, self.speed * (end - last.start_s))
+            self._segments.append(
+                _Segment(
+                    end,
+                    prior,
+                    step @ last.rotation,
+                    last.offset,
+                    last.offset,
+                    last.periodic + 1,
+                    last.base_s,
+                )
+            )
 
     def segment(self, t: float) -> int:
         """Index of the segment (stretch of turning about one axis) that time t falls in."""
-        return 0 if np.isinf(self.segment_s) else max(int(np.floor(t / self.segment_s)), 0)
+        self.horizon_s = max(self.horizon_s, t)
+        self._extend(t)
+        starts = [s.start_s for s in self._segments]
+        return max(int(np.searchsorted(starts, t, side="right")) - 1, 0)
 
     def segment_axis(self, k: int) -> np.ndarray:
-        return self.axes[k % len(self.axes)]
+        self._extend_to_index(k)
+        return self._segments[k].axis
 
     def segment_start(self, k: int) -> float:
-        return 0.0 if k == 0 else k * self.segment_s
+        self._extend_to_index(k)
+        return self._segments[k].start_s
 
-    def _turn(self, t: float) -> np.ndarray:
-        """The rotation (before the wobble) at time t: segment after segment, continuous."""
-        k = self.segment(t)
-        while len(self._segment_starts) <= k:
-            j = len(self._segment_starts) - 1
-            step = rotation_matrix(self.segment_axis(j), self.speed * self.segment_s)
-            self._segment_starts.append(step @ self._segment_starts[j])
-        turned = rotation_matrix(self.segment_axis(k), self.speed * (t - self.segment_start(k)))
-        return turned @ self._segment_starts[k]
+    def segment_centre(self, k: int) -> np.ndarray:
+        """Where the object's centre settles in segment k (after the slide of a regrasp)."""
+        self._extend_to_index(k)
+        return self.centre + self._segments[k].offset
+
+    def settled(self, k: int) -> float:
+        """A time in segment k after its slide (the start when nothing slides)."""
+        seg = self.segment_start(k)
+        moved = np.any(self._segments[k].offset != self._segments[k].offset_from)
+        return seg + self.slide_s if moved else seg
+
+    def _extend_to_index(self, k: int) -> None:
+        while len(self._segments) <= k and np.isfinite(self.segment_s):
+            last = self._segments[-1]
+            self._extend(last.base_s + (last.periodic + 1) * self.segment_s)
+        if k >= len(self._segments):
+            raise IndexError(f"segment {k} does not exist (one axis, no regrasp)")
+
+    def regrasp(self, t: float, axis: np.ndarray, offset: np.ndarray) -> tuple[int, float]:
+        """From t (or the latest time asked for, if later): turn about `axis`, slide to `offset`.
+
+        Returns the new segment's index and start time.
+        """
+        axis = np.asarray(axis, np.float64)
+        start = max(float(t), self.horizon_s)
+        k = self.segment(start)
+        last = self._segments[k]
+        del self._segments[k + 1 :]  # only stretches after the horizon: never used yet
+        step = rotation_matrix(last.axis, self.speed * (start - last.start_s))
+        offset_from = self._offset(last, start)
+        self._segments.append(
+            _Segment(
+                start,
+                axis / np.linalg.norm(axis),
+                step @ last.rotation,
+                offset_from,
+                np.asarray(offset, np.float64),
+                0,
+                start,
+            )
+        )
+        self.regrasps.append((start, self._segments[-1].axis, self._segments[-1].offset))
+        return len(self._segments) - 1, start
+
+    def _offset(self, seg: _Segment, t: float) -> np.ndarray:
+        """The grasp offset at time t in `seg`: a smooth slide from offset_from to offset."""
+        w = float(np.clip((t - seg.start_s) / self.slide_s, 0.0, 1.0))
+        w = w * w * (3.0 - 2.0 * w)
+        return (1.0 - w) * seg.offset_from + w * seg.offset
 
     def pose(self, t: float) -> np.ndarray:
+        seg = self._segments[self.segment(t)]
+        turned = rotation_matrix(seg.axis, self.speed * (t - seg.start_s)) @ seg.rotation
         w = 2 * np.pi * self.wobble_hz * t
         nod = rotation_matrix(self._u, self.wobble * np.sin(w + self._phase[0])) @ rotation_matrix(
             self._v, self.wobble * np.sin(0.7 * w + self._phase[1])
         )
         pose = np.eye(4)
-        pose[:3, :3] = nod @ self._turn(t)
-        pose[:3, 3] = self.centre + self.sway_m * np.sin(1.3 * w + self._phase[2]) * self._u
+        pose[:3, :3] = nod @ turned
+        sway = self.sway_m * np.sin(1.3 * w + self._phase[2]) * self._u
+        pose[:3, 3] = self.centre + self._offset(seg, t) + sway
         return pose
+
+
+class _Segment:
+    """A stretch of turning about one axis from `start_s` (rotation: the orientation then).
+
+    The grasp offset slides from `offset_from` to `offset` at its start. `periodic`
+    counts the alternation's stretches since `base_s` (0 or a regrasp's time).
+    """
+
+    def __init__(
+        self,
+        start_s: float,
+        axis: np.ndarray,
+        rotation: np.ndarray,
+        offset_from: np.ndarray,
+        offset: np.ndarray,
+        periodic: int,
+        base_s: float = 0.0,
+    ) -> None:
+        self.start_s, self.axis, self.rotation = start_s, axis, rotation
+        self.offset_from, self.offset = offset_from, offset
+        self.periodic, self.base_s = periodic, base_s

@@ -35,6 +35,7 @@ from neuralfeels_sem.pipeline.run_outputs import (
     write_metrics,
     write_touches,
 )
+from neuralfeels_sem.pipeline.touch_advisor import TouchAdvisorConfig, touch_advisors
 from neuralfeels_sem.sensors.factory import build_sensor
 from neuralfeels_sem.tasks.build import (
     BOUND_MARGIN,
@@ -57,7 +58,9 @@ def run(cfg: DictConfig) -> dict:
     sensor = build_sensor(cfg.sensor, obj, class_names)
     sensor.open()  # a missing device ends the run here, before any heavy work
     try:
-        return map_object(cfg, obj, sensor, output_dir())
+        out = output_dir()
+        advisors = touch_advisors(to_config(TouchAdvisorConfig, cfg.mapping.advisor), sensor, out)
+        return map_object(cfg, obj, sensor, out, observers=advisors)
     finally:
         sensor.close()
 

@@ -6,10 +6,20 @@ renders RGB-D with the hand's links as occluders. Each finger's renderer is seed
 with `seed + finger index`, so a finger keeps its own background (like a physical
 sensor) and task=collect_tactile, which uses the same seeds, trains the classifier on
 the same sensors a run sees.
+
+`policy=active`: new contacts go where the map is most uncertain (sim/touch_planner.py).
+The mapping session's touch advisor (pipeline/touch_advisor.py) hands the sensor its
+advice after every mapped frame (`advise`); at sensor.pace=offline frame j is planned
+with the advice of frame j - 1. Frames are rendered as the session asks for them, so a
+touch chosen at time t shapes the frames after t; a producer that renders ahead of the
+mapper waits for the advice it needs (up to ADVICE_WAIT_S), so the same seed gives the
+same run.
 """
 
 from __future__ import annotations
 
+import logging
+import threading
 from collections.abc import Callable, Iterator, Sequence
 
 import numpy as np
@@ -23,6 +33,10 @@ from neuralfeels_sem.sensors.base import Sensor, check_pace
 from neuralfeels_sem.sim.backgrounds import finger_seed
 
 DEFAULT_FIRMNESS_MM = {"index": 1.5, "middle": 1.5, "ring": 1.5, "thumb": 0.7}
+POLICIES = ("scripted", "active")
+ADVICE_WAIT_S = 600.0  # longest a frame waits for the advice of the frame before it
+
+log = logging.getLogger(__name__)
 
 
 class SimSensor(Sensor):
@@ -42,6 +56,8 @@ class SimSensor(Sensor):
         tactile: DigitRenderer options (background, noise_std, texture_scale, ...).
         rgbd: camera options (width, height, fov_y_deg, depth_noise, realsense, distance)
             and the lab scenery (table_height, backdrop_distance, mount).
+        policy: scripted (the gait's sampled touches) or active (the map's advice ranks them).
+        planner: TouchPlannerConfig options for policy=active.
         pace: offline | realtime (sensors/base.py PACES), read by a mapping run.
     """
 
@@ -65,10 +81,17 @@ class SimSensor(Sensor):
         seed: int = 0,
         tactile: dict | None = None,
         rgbd: dict | None = None,
+        policy: str = "scripted",
+        planner: dict | None = None,
         pace: str = "offline",
     ) -> None:
         if duration_s <= 0 or fps <= 0:
             raise ValueError(f"duration_s and fps must be > 0, got {duration_s}, {fps}")
+        if policy not in POLICIES:
+            raise ValueError(f"policy must be one of {POLICIES}, got {policy!r}")
+        self.policy, self.planner_options = policy, dict(planner or {})
+        self._advice, self._advice_index = None, -1
+        self._advice_ready = threading.Condition()
         self.obj = obj
         self.class_names = None if class_names is None else tuple(class_names)
         self.name = name
@@ -105,6 +128,7 @@ class SimSensor(Sensor):
             return
         from neuralfeels_sem.sim.rig import SimRig
         from neuralfeels_sem.sim.tactile_renderer import DigitRenderer
+        from neuralfeels_sem.sim.touch_planner import TouchPlanner, TouchPlannerConfig
 
         if self.obj is None:
             raise ConfigError(
@@ -127,6 +151,9 @@ class SimSensor(Sensor):
             period_s=self.gait_period_s,
             contact_fraction=self.contact_fraction,
             seed=self.seed,
+            planner=TouchPlanner(TouchPlannerConfig(**self.planner_options))
+            if self.accepts_advice
+            else None,
         )
         self.rig.open()
         self.renderers = {
@@ -161,6 +188,51 @@ class SimSensor(Sensor):
         self.open()
         return HandKinematics(self.rig.scene.world_T_palm)
 
+    @property
+    def accepts_advice(self) -> bool:
+        """Whether the touches follow the map's advice (policy=active)."""
+        return self.policy == "active"
+
+    def advise(self, frame_index: int, advice) -> None:
+        """The map's TouchAdvice after mapping `frame_index` (sim/touch_planner.py)."""
+        with self._advice_ready:
+            self._advice, self._advice_index = advice, int(frame_index)
+            self._advice_ready.notify_all()
+
+    def _latest_advice(self, index: int):
+        """The advice frame `index` is planned with: frame index - 1's, once advice flows.
+
+        Before the first advice (frame 0, or the frames a resumed run skips) there is none;
+        at sensor.pace=realtime it is the newest advice, whatever frame it follows.
+        """
+        with self._advice_ready:
+            lockstep = getattr(self, "pace", "offline") == "offline"
+            if (
+                lockstep
+                and self._advice_index >= 0
+                and not self._advice_ready.wait_for(
+                    lambda: self._advice_index >= index - 1, timeout=ADVICE_WAIT_S
+                )
+            ):
+                log.warning("frame %d planned without the advice of frame %d", index, index - 1)
+            return self._advice
+
+    def touch_plan(self) -> dict | None:
+        """What the active policy did: its choices and regrasps (None for policy=scripted)."""
+        if self.rig is None or self.rig.planner is None:
+            return None
+        planner, trajectory = self.rig.planner, self.rig.trajectory
+        scores = [c[2] for c in planner.choices]
+        return {
+            "policy": self.policy,
+            "choices": len(scores),
+            "mean_best_score": float(np.mean(scores)) if scores else None,
+            "regrasps": [
+                {"time_s": t, "axis": axis.tolist(), "offset_m": offset.tolist()}
+                for t, axis, offset in trajectory.regrasps
+            ],
+        }
+
     def close(self) -> None:
         for renderer in self.renderers.values():
             renderer.close()
@@ -185,6 +257,8 @@ class SimSensor(Sensor):
         """Frame `index` (call with non-decreasing indices: the fingers move incrementally)."""
         self.open()
         t = index / self.fps
+        if self.rig.planner is not None:
+            self.rig.planner.advice = self._latest_advice(index)
         state = self.rig.state_at(t)
         tactile = {}
         for finger, renderer in self.renderers.items():

@@ -1,0 +1,202 @@
+"""The touch advisor: a mapping-session observer that says where the hand should touch next.
+
+After every mapped frame it samples the map's surface (points of a sphere around the
+field's centre, moved onto the SDF's zero level by Newton steps), takes the material
+branch's normalised entropy there, keeps the labelled touches so far, and packs them into
+a TouchAdvice (sim/touch_planner.py) that scores object-frame points by uncertainty and
+novelty. With sensor.policy=active the simulated sensor is handed the advice and presses
+where it scores highest; on any other rig (sensor=real, replay) the best `top_k` surface
+points are written to the run as `touch_suggestions.json` (and drawn in
+`touch_suggestions.png`) for whatever moves the hand. The advisor only reads the field.
+"""
+
+from __future__ import annotations
+
+import json
+import logging
+from dataclasses import dataclass, field
+from pathlib import Path
+
+import numpy as np
+import torch
+
+from neuralfeels_sem.core.digit import GEL_DISTANCE_M
+from neuralfeels_sem.core.frame import Frame
+from neuralfeels_sem.core.geometry import invert_pose
+from neuralfeels_sem.fields.material_uncertainty import normalised_entropy
+from neuralfeels_sem.sim.touch_planner import TouchAdvice, TouchScoreConfig
+from neuralfeels_sem.utils.atomic import atomic_write_text
+
+log = logging.getLogger(__name__)
+
+SUGGESTIONS_FILE = "touch_suggestions.json"
+PROJECTION_STEPS = 4  # Newton steps onto the zero level (a trained SDF needs two)
+ON_SURFACE_M = 0.003  # samples whose |sdf| stays above this after the steps are dropped
+START_RADIUS = 0.6  # of the field's half-extent: the sphere the samples start on
+
+
+@dataclass
+class TouchAdvisorConfig:
+    """`mapping.advisor`: how the map's touch advice is made and reported."""
+
+    surface_points: int = 1024  # surface samples scored per refresh
+    every_frames: int = 1  # refresh the surface samples every this many mapped frames
+    top_k: int = 8  # suggestions written to touch_suggestions.json
+    score: TouchScoreConfig = field(default_factory=TouchScoreConfig)
+
+    def __post_init__(self) -> None:
+        if not 16 <= self.surface_points <= 100_000:
+            raise ValueError(
+                f"mapping.advisor.surface_points={self.surface_points} must be in [16, 100000]"
+            )
+        if self.every_frames < 1 or self.top_k < 1:
+            raise ValueError(
+                f"mapping.advisor: every_frames={self.every_frames} and top_k={self.top_k} must be >= 1"
+            )
+
+
+def sphere_directions(count: int) -> np.ndarray:
+    """(count, 3) unit vectors spread evenly over the sphere (Fibonacci lattice)."""
+    i = np.arange(count) + 0.5
+    z = 1.0 - 2.0 * i / count
+    phi = np.pi * (1.0 + 5**0.5) * i
+    r = np.sqrt(1.0 - z * z)
+    return np.column_stack([r * np.cos(phi), r * np.sin(phi), z])
+
+
+def surface_samples(semantic_field, directions: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
+    """Points on the field's zero level (field frame) and the material entropy there."""
+    centre = semantic_field.center
+    bound = semantic_field.bound
+    x = centre + START_RADIUS * bound * torch.as_tensor(directions, dtype=centre.dtype).to(
+        centre.device
+    )
+    for _ in range(PROJECTION_STEPS):
+        sdf, grad = semantic_field.sdf_and_gradient(x, create_graph=False)
+        step = sdf / grad.square().sum(dim=1).clamp_min(1e-6)
+        x = (x - step[:, None] * grad).detach()
+        x = torch.maximum(torch.minimum(x, centre + bound), centre - bound)
+    with torch.no_grad():
+        keep = semantic_field.sdf(x).abs() < ON_SURFACE_M
+        x = x[keep]
+        entropy = (
+            normalised_entropy(semantic_field.material_logits(x))
+            if len(x)
+            else torch.zeros(0, device=x.device)
+        )
+    return x.double().cpu().numpy(), entropy.double().cpu().numpy()
+
+
+class TouchAdvisor:
+    """Observer (pipeline/observers.py) that advises the sensor and writes suggestions.
+
+    Args:
+        config: mapping.advisor.
+        sensor: the run's sensor; advised when it accepts advice (sensor.policy=active).
+        out: the run directory (touch_suggestions.json / .png).
+    """
+
+    def __init__(self, config: TouchAdvisorConfig, sensor, out: Path) -> None:
+        self.config, self.sensor, self.out = config, sensor, Path(out)
+        self.directions = sphere_directions(config.surface_points)
+        self.touched: list[np.ndarray] = []  # labelled touches, field frame
+        self.surface = np.zeros((0, 3))
+        self.entropy = np.zeros(0)
+        self.advice: TouchAdvice | None = None
+        self.world_T_field = np.eye(4)  # the latest frame's object pose (the field's frame)
+        self.mapped = 0
+
+    def on_frame(self, frame: Frame, labels: dict, world_T_object: np.ndarray, mapper) -> None:
+        object_T_world = invert_pose(world_T_object)
+        for finger, label in labels.items():
+            reading = frame.tactile.get(finger)
+            if reading is None or not getattr(label, "usable", False):
+                continue  # only touches that teach the material branch count as pressed
+            gel = reading.world_T_sensor @ np.array([0.0, 0.0, GEL_DISTANCE_M, 1.0])
+            self.touched.append((object_T_world @ gel)[:3])
+        if self.mapped % self.config.every_frames == 0:
+            self.surface, self.entropy = surface_samples(mapper.field, self.directions)
+        self.mapped += 1
+        self.world_T_field = np.asarray(world_T_object, np.float64)
+        # The sensor plans in its own object frame: the true one in sim (the field's frame
+        # is the estimated one when the pose is tracked).
+        truth = frame.gt_world_T_object
+        sensor_T_field = np.eye(4) if truth is None else invert_pose(truth) @ self.world_T_field
+        self.advice = TouchAdvice(
+            _apply(sensor_T_field, self.surface),
+            self.entropy,
+            _apply(sensor_T_field, np.array(self.touched).reshape(-1, 3)),
+            self.config.score,
+            frame.index,
+        )
+        if getattr(self.sensor, "accepts_advice", False):
+            self.sensor.advise(frame.index, self.advice)
+
+    def on_scores(self, frame_index: int, scores: dict | None, mapper) -> None:
+        self.write()
+
+    def close(self) -> None:
+        self.write(picture=True)
+
+    def write(self, picture: bool = False) -> None:
+        """touch_suggestions.json (and the picture): the best surface points to touch next."""
+        if self.advice is None:
+            return
+        advice = TouchAdvice(
+            self.surface,
+            self.entropy,
+            np.array(self.touched).reshape(-1, 3),
+            self.config.score,
+            self.advice.frame_index,
+        )
+        points, scores = advice.suggestions(self.config.top_k)
+        report = suggestions_report(advice, points, scores, self.world_T_field)
+        plan = getattr(self.sensor, "touch_plan", None)
+        report["touch_plan"] = plan() if callable(plan) else None
+        atomic_write_text(self.out / SUGGESTIONS_FILE, json.dumps(report, indent=1))
+        if picture:
+            from neuralfeels_sem.viz.touch_suggestions import draw_suggestions
+
+            draw_suggestions(advice, points, self.out / "touch_suggestions.png")
+
+
+def suggestions_report(
+    advice: TouchAdvice, points: np.ndarray, scores: np.ndarray, world_T_object: np.ndarray
+) -> dict:
+    """The suggestions as JSON: object frame (the map's) and world frame at the latest pose."""
+    uncertainty = advice.uncertainty(points)
+    distance = advice.touch_distance(points)
+    world = _apply(world_T_object, points)
+    return {
+        "after_frame": advice.frame_index,
+        "frame": "object (the map's frame); world at the latest mapped pose",
+        "labelled_touches": len(advice.touched),
+        "surface_samples": len(advice.surface),
+        "suggestions": [
+            {
+                "point_object_m": points[i].round(5).tolist(),
+                "point_world_m": world[i].round(5).tolist(),
+                "score": round(float(scores[i]), 4),
+                "uncertainty": round(float(uncertainty[i]), 4),
+                "touch_distance_m": None
+                if not np.isfinite(distance[i])
+                else round(float(distance[i]), 4),
+            }
+            for i in range(len(points))
+        ],
+        "world_T_object": np.asarray(world_T_object).round(6).tolist(),
+    }
+
+
+def _apply(pose: np.ndarray, points: np.ndarray) -> np.ndarray:
+    return points @ pose[:3, :3].T + pose[:3, 3]
+
+
+def touch_advisors(config: TouchAdvisorConfig, sensor, out: Path) -> list[TouchAdvisor]:
+    """The map task's advisor: for an active sim policy, or any rig that is not simulated.
+
+    A scripted sim run (the sensor says it takes no advice) gets none.
+    """
+    if getattr(sensor, "accepts_advice", None) is False:
+        return []
+    return [TouchAdvisor(config, sensor, out)]

@@ -1,0 +1,220 @@
+"""Where to touch next (sensor.policy=active): score reachable touches by the map's uncertainty.
+
+The map's advice (`TouchAdvice`, built after every mapped frame by the mapping session's
+touch advisor, pipeline/touch_advisor.py) scores object-frame points:
+
+  score(p) = (w_u * u(p) + w_n * novelty(p)) / (w_u + w_n)   in [0, 1]
+
+  u(p):       normalised entropy of the material branch at the map's surface sample
+              nearest p (fields/material_uncertainty.py); 1 where no sample lies within
+              `unseen_m` (a part the map has not seen is as uncertain as can be);
+  novelty(p): distance from p to the nearest labelled touch, over `novelty_m`, capped at 1
+              (1 before any touch): an untrained branch is often confidently wrong, so
+              entropy alone would not send the fingers to parts never pressed.
+
+`TouchPlanner` ranks the reachable touches the contact sampler screened (the postures
+whose gel meets the object at touch-down time, sim/contact_sampler.py) by that score; the
+sampler presses the best that its IK confirms. When the best reachable score stays below
+`regrasp_below` for `regrasp_after` new contacts in a row, the planner turns and shifts
+the object in the grasp (`regrasp_move`): the most uncertain, least touched part of the
+map is brought to the fingers.
+"""
+
+from __future__ import annotations
+
+from dataclasses import dataclass, field
+
+import numpy as np
+from scipy.spatial import cKDTree
+
+
+@dataclass
+class TouchScoreConfig:
+    """`mapping.advisor.score`: the weights of the touch score (see the module docstring)."""
+
+    uncertainty_weight: float = 1.0
+    novelty_weight: float = 1.0
+    novelty_m: float = 0.03  # a point this far from every labelled touch is fully novel
+    unseen_m: float = 0.01  # a point this far from the map's surface samples counts unknown
+
+    def __post_init__(self) -> None:
+        if self.uncertainty_weight < 0 or self.novelty_weight < 0:
+            raise ValueError(
+                "mapping.advisor.score: uncertainty_weight and novelty_weight must be >= 0"
+            )
+        if self.uncertainty_weight + self.novelty_weight <= 0:
+            raise ValueError(
+                "mapping.advisor.score: set uncertainty_weight or novelty_weight above 0"
+            )
+        if self.novelty_m <= 0 or self.unseen_m <= 0:
+            raise ValueError("mapping.advisor.score: novelty_m and unseen_m must be > 0 (metres)")
+
+
+class TouchAdvice:
+    """The map's advice after one frame: scores object-frame points (numpy only, immutable).
+
+    Args:
+        surface: (M, 3) samples of the map's surface, object frame (metres).
+        entropy: (M,) normalised entropy of the material branch there, in [0, 1].
+        touched: (T, 3) labelled touches so far, object frame.
+        config: the score's weights.
+        frame_index: the mapped frame this advice follows.
+    """
+
+    def __init__(
+        self,
+        surface: np.ndarray,
+        entropy: np.ndarray,
+        touched: np.ndarray,
+        config: TouchScoreConfig,
+        frame_index: int,
+    ) -> None:
+        surface = np.asarray(surface, np.float64).reshape(-1, 3)
+        entropy = np.asarray(entropy, np.float64).reshape(-1)
+        if len(surface) != len(entropy):
+            raise ValueError(f"{len(surface)} surface samples but {len(entropy)} entropies")
+        self.surface, self.entropy = surface, np.clip(entropy, 0.0, 1.0)
+        self.touched = np.asarray(touched, np.float64).reshape(-1, 3)
+        self.config, self.frame_index = config, int(frame_index)
+        self._surface_tree = cKDTree(surface) if len(surface) else None
+        self._touch_tree = cKDTree(self.touched) if len(self.touched) else None
+
+    def touch_distance(self, points: np.ndarray) -> np.ndarray:
+        """(N,) metres from each point to the nearest labelled touch (inf before any)."""
+        points = np.asarray(points, np.float64).reshape(-1, 3)
+        if self._touch_tree is None:
+            return np.full(len(points), np.inf)
+        return self._touch_tree.query(points)[0]
+
+    def uncertainty(self, points: np.ndarray) -> np.ndarray:
+        """(N,) entropy at the nearest surface sample; 1 beyond `unseen_m` of every sample."""
+        points = np.asarray(points, np.float64).reshape(-1, 3)
+        if self._surface_tree is None:
+            return np.ones(len(points))
+        dist, nearest = self._surface_tree.query(points)
+        return np.where(dist <= self.config.unseen_m, self.entropy[nearest], 1.0)
+
+    def score(self, points: np.ndarray) -> np.ndarray:
+        """(N,) touch scores in [0, 1] of object-frame points: higher = touch there first."""
+        c = self.config
+        novelty = np.minimum(self.touch_distance(points) / c.novelty_m, 1.0)
+        total = c.uncertainty_weight * self.uncertainty(points) + c.novelty_weight * novelty
+        return total / (c.uncertainty_weight + c.novelty_weight)
+
+    def suggestions(self, k: int) -> tuple[np.ndarray, np.ndarray]:
+        """The k best surface samples, at least novelty_m / 2 apart: (k', 3) points, (k',) scores."""
+        if not len(self.surface):
+            return np.zeros((0, 3)), np.zeros(0)
+        scores = self.score(self.surface)
+        order = np.lexsort((np.arange(len(scores)), -scores))  # best first, ties by index
+        chosen: list[int] = []
+        for i in order:
+            p = self.surface[i]
+            if all(
+                np.linalg.norm(p - self.surface[j]) >= 0.5 * self.config.novelty_m for j in chosen
+            ):
+                chosen.append(int(i))
+                if len(chosen) == k:
+                    break
+        return self.surface[chosen], scores[chosen]
+
+    def hotspot(self) -> np.ndarray | None:
+        """The surface sample most worth touching: best score, then farthest from any touch."""
+        if not len(self.surface):
+            return None
+        scores = self.score(self.surface)
+        far = np.minimum(self.touch_distance(self.surface), 1.0)  # finite before any touch
+        return self.surface[int(np.lexsort((-far, -scores))[0])]
+
+
+@dataclass
+class TouchPlannerConfig:
+    """`sensor.planner`: how the active policy picks touches and when it regrasps."""
+
+    candidates: int = 48  # reachable touches screened and scored per new contact
+    regrasp_below: float = 0.5  # a best reachable score under this starves the planner
+    regrasp_after: int = 8  # new contacts in a row that starve before a regrasp
+    regrasp_gap_s: float = 2.0  # at least this long between regrasps (the slide takes 1 s)
+    max_offset_m: float = 0.05  # the object's centre stays this close to the grasp centre
+    keep_m: float = 0.02  # a regrasp brings the hotspot this close to the fingers' height
+    axes: list[list[float]] = field(
+        default_factory=lambda: [[1.0, 0.0, 0.0], [0.0, 1.0, 0.0], [0.0, 0.0, 1.0]]
+    )  # world-frame axes a regrasp may turn the object about
+
+    def __post_init__(self) -> None:
+        if self.candidates < 1:
+            raise ValueError(f"sensor.planner.candidates={self.candidates} must be >= 1")
+        if not 0.0 <= self.regrasp_below <= 1.0:
+            raise ValueError(f"sensor.planner.regrasp_below={self.regrasp_below} must be in [0, 1]")
+        if self.regrasp_after < 1:
+            raise ValueError(f"sensor.planner.regrasp_after={self.regrasp_after} must be >= 1")
+        if self.regrasp_gap_s < 0 or self.max_offset_m < 0 or self.keep_m < 0:
+            raise ValueError("sensor.planner: regrasp_gap_s, max_offset_m and keep_m must be >= 0")
+        if not self.axes or any(len(a) != 3 or np.linalg.norm(a) < 1e-9 for a in self.axes):
+            raise ValueError(
+                f"sensor.planner.axes={self.axes} must be a non-empty list of non-zero [x, y, z]"
+            )
+
+
+class TouchPlanner:
+    """Ranks reachable touches by the latest advice and decides when to regrasp."""
+
+    def __init__(self, config: TouchPlannerConfig | None = None) -> None:
+        self.config = config or TouchPlannerConfig()
+        self.advice: TouchAdvice | None = None
+        self.starved = 0  # new contacts in a row whose best reachable score was low
+        self.last_regrasp_s = -np.inf
+        self.choices: list[tuple[float, int, float]] = []  # (touch-down s, advice frame, score)
+
+    def rank(self, points: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
+        """Order (best first, ties keep the given order) and scores of candidate points.
+
+        Without advice yet: the given order, scores all 1 (the sampler's own ranking).
+        """
+        points = np.asarray(points, np.float64).reshape(-1, 3)
+        if self.advice is None:
+            return np.arange(len(points)), np.ones(len(points))
+        scores = self.advice.score(points)
+        return np.lexsort((np.arange(len(points)), -scores)), scores
+
+    def note_choice(self, touchdown_s: float, best_score: float) -> bool:
+        """Record a new contact's best reachable score; True when a regrasp is due."""
+        frame = -1 if self.advice is None else self.advice.frame_index
+        self.choices.append((float(touchdown_s), frame, float(best_score)))
+        if self.advice is None:
+            return False
+        self.starved = self.starved + 1 if best_score < self.config.regrasp_below else 0
+        due = (
+            self.starved >= self.config.regrasp_after
+            and touchdown_s - self.last_regrasp_s >= self.config.regrasp_gap_s
+        )
+        if due:
+            self.starved, self.last_regrasp_s = 0, float(touchdown_s)
+        return due
+
+    def regrasp_move(
+        self, world_T_object: np.ndarray, palm_up: np.ndarray
+    ) -> tuple[np.ndarray, np.ndarray] | None:
+        """New rotation axis and grasp offset (world, from the grasp centre) for the hotspot.
+
+        The axis most aligned with the hotspot's direction from the object's centre (so that
+        turning about it sweeps the hotspot's band past the fingers), the object slid along
+        it until the hotspot lies within keep_m of the fingers' height (at most max_offset_m
+        from the grasp centre). The slide keeps to the palm's plane and axes along the palm
+        normal are skipped: the object never moves into the palm. None without advice.
+        """
+        if self.advice is None or (spot := self.advice.hotspot()) is None:
+            return None
+        rel = world_T_object[:3, :3] @ spot  # hotspot from the object's centre, world
+        axes = [np.asarray(a, float) / np.linalg.norm(a) for a in self.config.axes]
+        up = np.asarray(palm_up, float) / np.linalg.norm(palm_up)
+        usable = [a for a in axes if abs(a @ up) < 0.9] or axes
+        axis = max(usable, key=lambda a: abs(a @ rel))
+        height = float(axis @ rel)
+        slide = -(height - np.sign(height) * min(abs(height), self.config.keep_m))
+        offset = slide * axis
+        offset -= (offset @ up) * up  # along the palm: never into it
+        norm = np.linalg.norm(offset)
+        if norm > self.config.max_offset_m:
+            offset *= self.config.max_offset_m / norm
+        return axis, offset

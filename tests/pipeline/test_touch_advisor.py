@@ -1,0 +1,119 @@
+"""The touch advisor: surface samples of the field, advice handed to the sensor, suggestions written."""
+
+from __future__ import annotations
+
+import json
+
+import numpy as np
+import torch
+
+from neuralfeels_sem.core.digit import DIGIT_INTRINSICS, GEL_DISTANCE_M
+from neuralfeels_sem.core.frame import Frame, TactileReading
+from neuralfeels_sem.perception.touch import TouchLabel
+from neuralfeels_sem.pipeline.touch_advisor import (
+    SUGGESTIONS_FILE,
+    TouchAdvisor,
+    TouchAdvisorConfig,
+    surface_samples,
+    touch_advisors,
+)
+
+RADIUS = 0.03
+
+
+class SphereField(torch.nn.Module):
+    """A 3 cm sphere: fabric (certain) above z = 0, an even guess between 4 classes below."""
+
+    def __init__(self) -> None:
+        super().__init__()
+        self.bound = 0.06
+        self.register_buffer("center", torch.zeros(3, dtype=torch.float64))
+
+    def sdf(self, x: torch.Tensor) -> torch.Tensor:
+        return x.norm(dim=1) - RADIUS
+
+    def sdf_and_gradient(self, x: torch.Tensor, create_graph: bool = False):
+        return self.sdf(x), x / x.norm(dim=1, keepdim=True)
+
+    def material_logits(self, x: torch.Tensor) -> torch.Tensor:
+        logits = torch.zeros(len(x), 4, dtype=x.dtype)
+        logits[x[:, 2] > 0, 2] = 20.0
+        return logits
+
+
+class Mapper:
+    field = SphereField()
+
+
+class AdvisedSensor:
+    accepts_advice = True
+
+    def __init__(self) -> None:
+        self.advised = []
+
+    def advise(self, frame_index, advice) -> None:
+        self.advised.append((frame_index, advice))
+
+    def touch_plan(self) -> dict:
+        return {"policy": "active", "regrasps": []}
+
+
+def _frame(index: int) -> Frame:
+    """The index finger's gel touches the sphere's top (object frame = world)."""
+    world_T_sensor = np.eye(4)
+    world_T_sensor[:3, 3] = [0.0, 0.0, RADIUS - GEL_DISTANCE_M]
+    reading = TactileReading(
+        "index", np.zeros((320, 240, 3), np.uint8), world_T_sensor, DIGIT_INTRINSICS
+    )
+    return Frame(index, index / 10, np.eye(4), {"index": reading}, gt_world_T_object=np.eye(4))
+
+
+def test_surface_samples_lie_on_the_zero_level_with_the_branch_entropy() -> None:
+    directions = np.random.default_rng(0).normal(size=(200, 3))
+    directions /= np.linalg.norm(directions, axis=1, keepdims=True)
+    points, entropy = surface_samples(SphereField(), directions)
+    assert len(points) == 200
+    np.testing.assert_allclose(np.linalg.norm(points, axis=1), RADIUS, atol=1e-6)
+    np.testing.assert_allclose(entropy[points[:, 2] > 0.001], 0.0, atol=1e-6)
+    np.testing.assert_allclose(entropy[points[:, 2] < -0.001], 1.0, atol=1e-6)
+
+
+def test_advice_reaches_the_sensor_and_suggestions_point_at_the_uncertain_half(tmp_path) -> None:
+    sensor = AdvisedSensor()
+    advisor = TouchAdvisor(TouchAdvisorConfig(surface_points=256, top_k=4), sensor, tmp_path)
+    for i in range(3):
+        label = TouchLabel("index", True, 2, 0.99)
+        advisor.on_frame(_frame(i), {"index": label}, np.eye(4), Mapper())
+    assert [i for i, _ in sensor.advised] == [0, 1, 2]
+    advice = sensor.advised[-1][1]
+    np.testing.assert_allclose(advice.touched, [[0.0, 0.0, RADIUS]] * 3, atol=1e-12)
+    advisor.on_scores(2, None, Mapper())
+    advisor.close()
+    report = json.loads((tmp_path / SUGGESTIONS_FILE).read_text())
+    assert report["after_frame"] == 2 and report["labelled_touches"] == 3
+    assert len(report["suggestions"]) == 4
+    scores = [s["score"] for s in report["suggestions"]]
+    assert scores == sorted(scores, reverse=True)
+    # the unknown lower half comes first; the touched, certain top never
+    assert all(s["point_object_m"][2] < 0 for s in report["suggestions"])
+    assert report["touch_plan"] == {"policy": "active", "regrasps": []}
+    assert (tmp_path / "touch_suggestions.png").stat().st_size > 0
+
+
+def test_a_touch_without_a_usable_label_is_not_counted(tmp_path) -> None:
+    advisor = TouchAdvisor(TouchAdvisorConfig(surface_points=64), AdvisedSensor(), tmp_path)
+    advisor.on_frame(_frame(0), {"index": TouchLabel("index", False)}, np.eye(4), Mapper())
+    assert advisor.touched == []
+
+
+def test_only_an_advised_or_unsimulated_sensor_gets_an_advisor(tmp_path) -> None:
+    class Scripted:
+        accepts_advice = False
+
+    class Real:
+        pass
+
+    config = TouchAdvisorConfig()
+    assert touch_advisors(config, Scripted(), tmp_path) == []
+    assert len(touch_advisors(config, Real(), tmp_path)) == 1
+    assert len(touch_advisors(config, AdvisedSensor(), tmp_path)) == 1

@@ -1,0 +1,112 @@
+"""sensor.policy=active in the rig: best-scoring reachable touches, repeatable, regrasps when starved.
+
+The rig alone (no rendering), on a 4 cm two-material sphere, with fixed advice.
+"""
+
+from __future__ import annotations
+
+import numpy as np
+
+from neuralfeels_sem.configs.sensor_sim import SimSensorConfig
+from neuralfeels_sem.sim.rig import SimRig
+from neuralfeels_sem.sim.touch_planner import (
+    TouchAdvice,
+    TouchPlanner,
+    TouchPlannerConfig,
+    TouchScoreConfig,
+)
+from tests.sim.shapes import two_material_sphere
+
+MOTION = SimSensorConfig().rig_motion()
+TOWARD = np.array([0.3, 1.0, 0.5]) / np.linalg.norm([0.3, 1.0, 0.5])
+
+
+class TowardScore(TouchAdvice):
+    """Advice that prefers points along one object-frame direction (score = 0.5 + 0.5 cos)."""
+
+    def __init__(self) -> None:
+        super().__init__(np.zeros((0, 3)), np.zeros(0), np.zeros((0, 3)), TouchScoreConfig(), 0)
+
+    def score(self, points: np.ndarray) -> np.ndarray:
+        unit = points / np.linalg.norm(points, axis=1, keepdims=True)
+        return 0.5 + 0.5 * unit @ TOWARD
+
+
+def _active_rig(advice: TouchAdvice, seed: int = 0, **planner) -> SimRig:
+    rig = SimRig(
+        two_material_sphere(),
+        seed=seed,
+        planner=TouchPlanner(TouchPlannerConfig(**planner)),
+        **MOTION,
+    )
+    rig.open()
+    rig.planner.advice = advice
+    return rig
+
+
+def test_the_touch_is_the_best_scoring_candidate_that_verifies() -> None:
+    rig = _active_rig(TowardScore())
+    verify, checked = rig._verify, []
+
+    def spy(finger, order, press, firm, world_T_object):
+        contact = verify(finger, order, press, firm, world_T_object)
+        scores = rig.planner.advice.score(np.array([c[4] for c in order]))
+        assert (np.diff(scores) <= 1e-12).all()  # tried best score first
+        if contact is not None and len(checked) < 3:
+            # the first candidate that verifies on its own is the one pressed
+            first = next(c for c in order if verify(finger, [c], press, firm, world_T_object))
+            again = verify(finger, [first], press, firm, world_T_object)
+            np.testing.assert_allclose(again.point, contact.point, atol=1e-9)
+            checked.append(finger)
+        return contact
+
+    rig._verify = spy
+    for i in range(12):
+        rig.state_at(i / 10)
+    assert len(checked) == 3
+
+
+def test_active_contacts_are_repeatable_per_seed_and_differ_from_the_gait() -> None:
+    def contacts(rig: SimRig) -> list:
+        out = []
+        for i in range(20):
+            state = rig.state_at(i / 10)
+            out.append(
+                [None if p is None else p.round(9).tolist() for p in state.contact_point.values()]
+            )
+        return out
+
+    first, second = contacts(_active_rig(TowardScore())), contacts(_active_rig(TowardScore()))
+    assert first == second
+    scripted = SimRig(two_material_sphere(), seed=0, **MOTION)
+    assert contacts(scripted) != first
+
+
+def test_touches_lean_toward_the_advice() -> None:
+    active, scripted = _active_rig(TowardScore()), SimRig(two_material_sphere(), seed=0, **MOTION)
+    mean = {}
+    for name, rig in (("active", active), ("scripted", scripted)):
+        cos = []
+        for i in range(30):
+            state = rig.state_at(i / 10)
+            for f, p in state.contact_point.items():
+                if state.touching[f] and p is not None:
+                    cos.append(p @ TOWARD / np.linalg.norm(p))
+        mean[name] = float(np.mean(cos))
+    assert mean["active"] > mean["scripted"] + 0.1, mean
+
+
+def test_a_starved_planner_regrasps_and_the_rig_goes_on() -> None:
+    # every point already touched and certain: nothing scores well anywhere
+    sphere = two_material_sphere()
+    surface = np.asarray(sphere.mesh.vertices)
+    dull = TouchAdvice(surface, np.zeros(len(surface)), surface, TouchScoreConfig(), 0)
+    rig = _active_rig(dull, regrasp_after=3, regrasp_gap_s=0.5)
+    for i in range(25):
+        rig.state_at(i / 10)
+    assert rig.trajectory.regrasps
+    t, axis, offset = rig.trajectory.regrasps[0]
+    assert abs(axis @ rig.scene.world_T_palm[:3, 0]) < 0.9  # never about the palm normal
+    assert np.linalg.norm(offset) <= rig.planner.config.max_offset_m + 1e-12
+    rig.scene.step(100)
+    assert rig.scene.warning_count == 0

@@ -1,0 +1,117 @@
+"""The touch score, the planner's ranking and regrasp decisions, and the trajectory's regrasp."""
+
+from __future__ import annotations
+
+import numpy as np
+import pytest
+
+from neuralfeels_sem.sim.touch_planner import (
+    TouchAdvice,
+    TouchPlanner,
+    TouchPlannerConfig,
+    TouchScoreConfig,
+)
+from neuralfeels_sem.sim.trajectory import ObjectTrajectory
+
+SCORE = TouchScoreConfig(uncertainty_weight=1.0, novelty_weight=1.0, novelty_m=0.02, unseen_m=0.01)
+
+
+def _advice(touched=((0.0, 0.0, 0.04),)) -> TouchAdvice:
+    surface = np.array([[0.0, 0.0, 0.04], [0.04, 0.0, 0.0], [0.0, 0.04, 0.0]])
+    return TouchAdvice(surface, np.array([0.0, 0.5, 1.0]), np.array(touched), SCORE, 7)
+
+
+def test_score_mixes_entropy_at_the_nearest_sample_and_distance_to_touches() -> None:
+    advice = _advice()
+    points = np.array([[0.0, 0.0, 0.041], [0.04, 0.0, 0.0], [0.0, 0.04, 0.005], [0.1, 0.1, 0.1]])
+    np.testing.assert_allclose(advice.uncertainty(points), [0.0, 0.5, 1.0, 1.0])
+    # novelty: 1 mm from the touch -> 0.05; the others farther than novelty_m -> 1
+    np.testing.assert_allclose(advice.score(points), [0.025, 0.75, 1.0, 1.0], atol=1e-9)
+    # before any touch every point is fully novel
+    assert (_advice(touched=np.zeros((0, 3))).score(points) >= 0.5).all()
+
+
+def test_suggestions_are_best_first_and_spread_and_the_hotspot_is_the_best() -> None:
+    advice = _advice()
+    points, scores = advice.suggestions(2)
+    np.testing.assert_allclose(points, [[0.0, 0.04, 0.0], [0.04, 0.0, 0.0]])
+    assert list(scores) == sorted(scores, reverse=True)
+    np.testing.assert_allclose(advice.hotspot(), [0.0, 0.04, 0.0])
+
+
+def test_planner_ranks_candidates_best_first_and_keeps_ties_in_order() -> None:
+    planner = TouchPlanner()
+    points = np.array([[0.0, 0.0, 0.04], [0.0, 0.04, 0.0], [0.04, 0.0, 0.0], [0.0, 0.04, 0.0]])
+    order, _ = planner.rank(points)
+    np.testing.assert_array_equal(order, [0, 1, 2, 3])  # no advice yet: the sampler's order
+    planner.advice = _advice()
+    order, scores = planner.rank(points)
+    np.testing.assert_array_equal(order, [1, 3, 2, 0])
+    assert scores[order[0]] == pytest.approx(1.0)
+
+
+def test_a_regrasp_is_due_after_enough_starved_contacts_and_not_too_often() -> None:
+    planner = TouchPlanner(
+        TouchPlannerConfig(regrasp_below=0.5, regrasp_after=3, regrasp_gap_s=5.0)
+    )
+    assert not planner.note_choice(0.0, 0.1)  # no advice: never starved
+    planner.advice = _advice()
+    assert [planner.note_choice(t, 0.1) for t in (1.0, 1.1, 1.2)] == [False, False, True]
+    assert not any(planner.note_choice(t, 0.1) for t in (1.3, 1.4, 1.5))  # within the gap
+    assert not planner.note_choice(7.0, 0.9)  # a good touch resets the count
+    assert [planner.note_choice(t, 0.1) for t in (7.1, 7.2, 7.3)] == [False, False, True]
+
+
+def test_regrasp_move_slides_the_hotspot_to_the_fingers_along_the_palm() -> None:
+    planner = TouchPlanner(TouchPlannerConfig(max_offset_m=0.05, keep_m=0.02))
+    far = np.array([0.09, 0.01, 0.0])  # the far end of a long object, along x
+    planner.advice = TouchAdvice(far[None], np.ones(1), np.zeros((0, 3)), SCORE, 3)
+    up = np.array([0.0, 0.0, 1.0])
+    axis, offset = planner.regrasp_move(np.eye(4), up)
+    np.testing.assert_allclose(axis, [1.0, 0.0, 0.0])
+    np.testing.assert_allclose(offset, [-0.05, 0.0, 0.0])  # 7 cm wanted, 5 cm allowed
+    # a hotspot straight above the palm: never an axis (or a slide) along the palm normal
+    planner.advice = TouchAdvice(
+        np.array([[0.0, 0.0, 0.06]]), np.ones(1), np.zeros((0, 3)), SCORE, 3
+    )
+    axis, offset = planner.regrasp_move(np.eye(4), up)
+    assert abs(axis @ up) < 0.9 and abs(offset @ up) < 1e-12
+    assert TouchPlanner().regrasp_move(np.eye(4), up) is None  # no advice, no move
+
+
+@pytest.mark.parametrize(
+    "key, value",
+    [("candidates", 0), ("regrasp_below", 1.5), ("regrasp_after", 0), ("axes", [[0, 0, 0]])],
+)
+def test_bad_planner_settings_are_value_errors_naming_the_key(key, value) -> None:
+    with pytest.raises(ValueError, match=f"sensor.planner.{key}"):
+        TouchPlannerConfig(**{key: value})
+
+
+def test_bad_score_weights_are_value_errors() -> None:
+    with pytest.raises(ValueError, match="mapping.advisor.score"):
+        TouchScoreConfig(uncertainty_weight=0.0, novelty_weight=0.0)
+
+
+def test_trajectory_regrasp_turns_about_the_new_axis_after_a_smooth_slide() -> None:
+    centre = np.array([0.0, 0.0, 0.2])
+    traj = ObjectTrajectory(centre, (0, 0, 1), 30.0, wobble_deg=0.0, sway_m=0.0, slide_s=1.0)
+    before = traj.pose(2.0)
+    k, start = traj.regrasp(1.0, (1.0, 0.0, 0.0), (0.03, 0.0, 0.0))
+    assert start == 2.0 and k == 1  # never earlier than a pose already given out
+    np.testing.assert_allclose(traj.pose(2.0), before, atol=1e-12)
+    np.testing.assert_allclose(traj.pose(2.5)[:3, 3], centre + [0.015, 0.0, 0.0], atol=1e-12)
+    np.testing.assert_allclose(traj.pose(3.0)[:3, 3], centre + [0.03, 0.0, 0.0], atol=1e-12)
+    step = traj.pose(3.5)[:3, :3] @ traj.pose(3.0)[:3, :3].T  # about x now
+    np.testing.assert_allclose(step @ [1.0, 0.0, 0.0], [1.0, 0.0, 0.0], atol=1e-12)
+    np.testing.assert_allclose(traj.segment_centre(1), centre + [0.03, 0.0, 0.0])
+    assert traj.settled(1) == 3.0 and traj.regrasps[0][0] == 2.0
+
+
+def test_alternation_goes_on_after_a_regrasp() -> None:
+    z, y, x = np.eye(3)[2], np.eye(3)[1], np.eye(3)[0]
+    traj = ObjectTrajectory(np.zeros(3), z, alternate_axis=y, alternate_every_s=2.0, wobble_deg=0.0)
+    traj.pose(3.0)
+    traj.regrasp(3.0, x, np.zeros(3))
+    axes = [traj.segment_axis(traj.segment(t)) for t in (1.0, 2.5, 3.5, 5.5, 7.5)]
+    np.testing.assert_allclose(axes, [z, y, x, y, x])
