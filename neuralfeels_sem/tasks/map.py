@@ -46,6 +46,7 @@ from neuralfeels_sem.tasks.build import (
 from neuralfeels_sem.tasks.run_guard import run_provenance
 from neuralfeels_sem.tasks.runner import output_dir
 from neuralfeels_sem.utils.device import resolve_device
+from neuralfeels_sem.viz.live import build_live_view
 from neuralfeels_sem.viz.run_report import print_summary, write_pictures
 from neuralfeels_sem.viz.segmentation_overlay import write_segmentation_pictures
 
@@ -60,7 +61,15 @@ def run(cfg: DictConfig) -> dict:
     try:
         out = output_dir()
         advisors = touch_advisors(to_config(TouchAdvisorConfig, cfg.mapping.advisor), sensor, out)
-        return map_object(cfg, obj, sensor, out, observers=advisors)
+        live = build_live_view(
+            cfg.viz.live,
+            out,
+            class_names,
+            spawn=cfg.viz.live_spawn,
+            mesh_resolution=cfg.viz.live_mesh_resolution,
+            camera_points=cfg.viz.live_camera_points,
+        )
+        return map_object(cfg, obj, sensor, out, observers=[*advisors, *live])
     finally:
         sensor.close()
 

@@ -7,7 +7,8 @@ classifier or field is built:
   checkpoint, a custom object's mesh (its NaN vertices and face count against MuJoCo's
   limit too) and label file, the tactile depth checkpoint;
 - settings the task would silently ignore (`classifier.weights` outside training);
-- the field's hash table against the memory available to hold it.
+- the field's hash table against the memory available to hold it;
+- the live view's optional extra (`viz.live=rerun` needs rerun-sdk).
 Each refusal raises a UserError with one line naming the key and the fix.
 """
 
@@ -30,6 +31,7 @@ FLOAT_BYTES = 4  # the table is float32
 def preflight(cfg: DictConfig) -> None:
     """Every check of this module, cheapest first; raises a UserError on the first failure."""
     check_ignored_settings(cfg)
+    check_live_view(cfg)
     check_table_memory(cfg)
     check_recording(cfg)
     check_checkpoints(cfg)
@@ -45,6 +47,21 @@ def check_ignored_settings(cfg: DictConfig) -> None:
             f"classifier.weights={weights} is read only by task=train_classifier (the backbone "
             f"training starts from) and task={task} would ignore it; to use a trained classifier "
             "set classifier.checkpoint=PATH instead"
+        )
+
+
+def check_live_view(cfg: DictConfig) -> None:
+    """Refuse `viz.live=rerun` on a map run where rerun-sdk does not import."""
+    live = str(cfg.get("viz", {}).get("live", "none"))
+    if live != "rerun" or str(cfg.task.get("name")) not in TASKS_BUILDING_A_FIELD:
+        return
+    from neuralfeels_sem.viz.live import INSTALL_HINT, rerun_import_error
+
+    error = rerun_import_error()
+    if error is not None:
+        raise ConfigError(
+            f"viz.live=rerun needs the optional rerun-sdk package ({error}): "
+            f"install it with {INSTALL_HINT}, or set viz.live=none"
         )
 
 
