@@ -148,7 +148,11 @@ def _digest(rows: Tensor) -> str:
 
 def _pack(table: Tensor, moments: dict, updated: Tensor, replayed: bool, storage: str) -> dict:
     table = table.detach().cpu()
-    m, v = (t.cpu()[updated] for t in _moments(moments))
+    if "moments" in moments:  # one masked copy of both moments, then the halves
+        pair = moments["moments"].cpu()[updated]
+        m, v = pair[:, 0], pair[:, 1]
+    else:
+        m, v = (t.cpu()[updated] for t in _moments(moments))
     rest = table[~updated]
     entry = {
         "storage": storage,
@@ -217,19 +221,22 @@ def _unpack(entry: dict, init: Tensor | None, name: str, source: str) -> tuple[T
 
 def quantise_moments(m: Tensor, v: Tensor) -> dict:
     """8-bit codes of Adam's (m, v): log2(sqrt v) on 254 levels between its smallest and
-    largest value (code 0: v = 0), and m / sqrt(v) on 255 levels symmetric about 0."""
+    largest value (code 0: v = 0), and m / sqrt(v) on 255 levels symmetric about 0.
+    In-place arithmetic on whole tensors (no masked copies): these run on millions of rows."""
     s = v.float().sqrt()
-    nonzero = s > 0
-    ratio = torch.where(nonzero, m.float() / torch.where(nonzero, s, 1.0), 0.0)
+    zero = s == 0
+    ratio = torch.div(m.float(), s.clamp(min=torch.finfo(torch.float32).tiny))  # m untouched
+    ratio.masked_fill_(zero, 0.0)
     ratio_step = float(ratio.abs().max()) / 127 if ratio.numel() else 0.0
-    ratio_codes = (ratio / (ratio_step or 1.0)).round().clamp(-127, 127).to(torch.int8)
-    log_s = s[nonzero].log2()
+    ratio_codes = ratio.div_(ratio_step or 1.0).round_().clamp_(-127, 127).to(torch.int8)
+    log_s = s.log2_()  # -inf where v = 0
     high = float(log_s.max()) if log_s.numel() else 0.0
+    smallest = float(log_s.masked_fill(zero, float("inf")).min()) if log_s.numel() else 0.0
     # 64 octaves at most, so one tiny outlier cannot coarsen every other value's code.
-    low = max(float(log_s.min()), high - 64.0) if log_s.numel() else 0.0
+    low = max(smallest, high - 64.0) if smallest != float("inf") else high
     log_step = (high - low) / 254 or 1.0
-    scale_codes = torch.zeros(s.shape, dtype=torch.uint8)
-    scale_codes[nonzero] = ((log_s.clamp(min=low) - low) / log_step).round().to(torch.uint8) + 1
+    codes = log_s.clamp_(min=low).sub_(low).div_(log_step).round_().add_(1.0)
+    scale_codes = codes.to(torch.uint8).masked_fill_(zero, 0)
     return {
         "ratio_codes": ratio_codes,
         "ratio_step": ratio_step,

@@ -165,11 +165,18 @@ def test_task_eval_rescores_a_finished_run(tiny_run: Path) -> None:
     assert result.returncode == 0, result.stderr[-3000:]
     original = json.loads((tiny_run / "metrics.json").read_text())
     again = json.loads((tiny_run / "eval" / "metrics.json").read_text())
-    assert again["matching_pct"] == pytest.approx(original["matching_pct"])
-    for key in ("matching_mean_class_pct", "matching_miou_pct", "matching_mesh_pct"):
-        assert again[key] == pytest.approx(original[key]), key
+    # A compact checkpoint holds the table in float16 (mapping/checkpoint_codec.py): the
+    # field moves by its rounding, so a sample or two of 2000 may change sides (0.05 points
+    # of matching each; a shape sample crossing 5 mm moves the F-score by about 3e-4).
+    for key in (
+        "matching_pct",
+        "matching_mean_class_pct",
+        "matching_miou_pct",
+        "matching_mesh_pct",
+    ):
+        assert again[key] == pytest.approx(original[key], abs=0.2), key
     assert again["baseline_majority"] == original["baseline_majority"]
-    assert again["fscore_5mm"] == pytest.approx(original["fscore_5mm"], abs=1e-6)
+    assert again["fscore_5mm"] == pytest.approx(original["fscore_5mm"], abs=2e-3)
     assert (tiny_run / "eval" / "material_maps.png").is_file()
 
 
