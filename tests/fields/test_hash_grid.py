@@ -195,3 +195,22 @@ def test_corner_indices_match_a_naive_reference() -> None:
     # Every level's rows stay inside its own block of the table.
     for level, (start, rows) in enumerate(zip(enc.level_offsets, enc.level_rows)):
         assert idx[:, level].min() >= start and idx[:, level].max() < start + rows
+
+
+def test_fused_interpolation_equals_the_autograd_path_bit_for_bit() -> None:
+    """Points without a gradient take the fused gather + interpolation; points that need
+    one (the eikonal loss) take plain autograd: same features, same sparse table gradient."""
+    torch.manual_seed(0)
+    enc = HashGridEncoding(HashGridConfig(log2_table_size=12, init_scale=1e-2))
+    x = torch.rand(700, 3, generator=torch.Generator().manual_seed(1))
+    upstream = torch.randn(700, enc.out_dim, generator=torch.Generator().manual_seed(2))
+    results = []
+    for needs_grad in (False, True):
+        enc.table.grad = None
+        out = enc(x.clone().requires_grad_(needs_grad))
+        (out * upstream).sum().backward()
+        results.append((out.detach(), enc.table.grad))
+    (fused, g_fused), (plain, g_plain) = results
+    assert torch.equal(fused, plain)
+    assert torch.equal(g_fused._indices(), g_plain._indices())
+    assert torch.equal(g_fused._values(), g_plain._values())
