@@ -66,6 +66,7 @@ class SemanticField(nn.Module):
             config.num_classes,
             config.sdf.hidden_dim if material.concat_sdf_features else 0,
             material,
+            sparse_grad=config.encoding.sparse_grad,
         )
 
     def normalise(self, x: Tensor) -> Tensor:

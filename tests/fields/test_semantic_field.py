@@ -236,3 +236,64 @@ def test_fits_a_two_material_sphere(concat: bool, one_thread) -> None:
         )
     assert err < 0.002
     assert agreement >= 0.98
+
+
+def _grid_field(**material) -> SemanticField:
+    torch.manual_seed(0)
+    grid = {"grid_levels": 3, "grid_base_resolution": 4, "grid_log2_table_size": 8}
+    return make_field(3, encoding=TINY, material=MaterialHeadConfig(**{**grid, **material}))
+
+
+def test_material_grid_adds_its_features_to_the_material_input_only() -> None:
+    field = _grid_field()
+    grid = field.material_head.grid
+    assert grid is not None and grid.out_dim == 3 * 2
+    assert field.material_head.mlp.in_dim == 16 + 3 + 64 + 6
+    assert _field().material_head.grid is None  # the paper's branch by default
+    x = _points()
+    sdf_before, logits_before = field.sdf(x), field.material_logits(x)
+    with torch.no_grad():
+        grid.table.normal_(0.0, 1.0)
+    torch.testing.assert_close(field.sdf(x), sdf_before)
+    assert not torch.allclose(field.material_logits(x), logits_before)
+
+
+def test_material_grid_gets_row_sparse_gradients_from_the_material_loss_only() -> None:
+    field = _grid_field()
+    field.material_logits(_points()).sum().backward()
+    assert field.material_head.grid.table.grad.is_sparse
+    assert field.encoding.table.grad is None
+    dense = make_field(
+        3,
+        encoding=HashGridConfig(**{**TINY.__dict__, "sparse_grad": False}),
+        material=MaterialHeadConfig(grid_levels=2, grid_log2_table_size=8),
+    )
+    dense.material_logits(_points()).sum().backward()
+    assert not dense.material_head.grid.table.grad.is_sparse  # follows model.encoding
+
+
+def test_material_grid_gradcheck() -> None:
+    torch.manual_seed(0)
+    field = make_field(
+        3,
+        encoding=HashGridConfig(**{**TINY.__dict__, "sparse_grad": False}),
+        # z(x) is detached from the material loss; leave it out so x flows only through
+        # SH, x and the material grid.
+        material=MaterialHeadConfig(
+            concat_sdf_features=False, grid_levels=2, grid_base_resolution=4, grid_log2_table_size=8
+        ),
+    ).double()
+    with torch.no_grad():
+        field.material_head.grid.table.normal_(0.0, 0.5)
+    x = _points(8, dtype=torch.float64).requires_grad_(True)
+    assert torch.autograd.gradcheck(lambda p: field.material_logits(p), (x,))
+
+
+@pytest.mark.parametrize(
+    ("key", "value"),
+    [("grid_levels", -1), ("grid_base_resolution", 0), ("grid_per_level_scale", 0.5),
+     ("grid_log2_table_size", 3)],
+)  # fmt: skip
+def test_material_grid_settings_are_range_checked(key: str, value) -> None:
+    with pytest.raises(ValueError, match=f"model.material.{key}="):
+        MaterialHeadConfig(**{"grid_levels": 2, key: value})
