@@ -21,7 +21,8 @@ import torch
 from neuralfeels_sem.core.errors import ConfigError
 from neuralfeels_sem.core.frame import Frame
 from neuralfeels_sem.core.geometry import check_pose, invert_pose, orthonormalize_pose
-from neuralfeels_sem.mapping.pose_tracker import PoseTracker, TrackerConfig, constant_velocity
+from neuralfeels_sem.mapping.pose_tracker import PoseTracker, TrackerConfig
+from neuralfeels_sem.mapping.se3 import constant_velocity
 from neuralfeels_sem.utils.atomic import atomic_write
 
 log = logging.getLogger(__name__)
@@ -139,7 +140,10 @@ class TrackedPose(PoseSource):
         self.history: list[np.ndarray] = []  # the last two estimates (motion prior)
         self.curve: list[list[float]] = []  # [frame_index, time_s, error_mm]
         self.kept: dict[str, int] = {}  # why the prediction was kept, and how often
+        self.fit_curve: list[list[float]] = []  # [frame, inlier share, conditioning] of solves
         self.tracked_frames = 0
+        self.reinitialised_frames = 0  # tracked only after a restart from the last pose
+        self.degenerate_frames = 0  # tracked, some directions held by the motion prior
         self.track_seconds = 0.0  # wall time spent tracking (SDF evaluations dominate)
 
     # ---------------------------------------------------------------- tracking
@@ -158,25 +162,11 @@ class TrackedPose(PoseSource):
     def estimate(self, frame: Frame, mapper: MapView) -> np.ndarray:
         if not self.history:
             pose = np.asarray(frame.world_T_object, dtype=np.float64).copy()
+        elif self.name == "track" and not mapper.has_surface:
+            pose = constant_velocity(self.history)
+            self._keep("no surface learned yet")
         else:
-            predicted = constant_velocity(self.history)
-            if self.name == "track" and not mapper.has_surface:
-                pose = predicted
-                self._keep("no surface learned yet")
-            else:
-                points = {
-                    source: torch.as_tensor(p)
-                    for source, p in mapper.frame_points(frame, np.eye(4)).items()
-                }
-                start = time.perf_counter()
-                pose, info = self.tracker.track(
-                    points, self._sdf_fn(mapper), predicted, prior=predicted
-                )
-                self.track_seconds += time.perf_counter() - start
-                if info["skipped"]:
-                    self._keep(info["skipped"].split(" (")[0])
-                else:
-                    self.tracked_frames += 1
+            pose = self._track(frame, mapper)
         pose = orthonormalize_pose(pose)
         self.history = (self.history + [pose])[-2:]
         self.last_estimate = pose
@@ -184,6 +174,38 @@ class TrackedPose(PoseSource):
         if frame.gt_world_T_object is not None:
             err = average_3d_error(pose, frame.gt_world_T_object, self._surface_points())
             self.curve.append([int(frame.index), float(frame.time_s), 1e3 * err])
+        return pose
+
+    def _track(self, frame: Frame, mapper: MapView) -> np.ndarray:
+        """The frame's tracked pose, or the prediction when no solve fits (counted).
+
+        A solve from the constant-velocity prediction that does not fit (fit_check.py) or
+        diverges is retried once from the last pose (no motion assumed): the prediction
+        carries the last frame's motion, and a wrong one can start the solve in a wrong
+        basin. Too few points are not retried: no start can fix them.
+        """
+        predicted = constant_velocity(self.history)
+        points = {
+            source: torch.as_tensor(p)
+            for source, p in mapper.frame_points(frame, np.eye(4)).items()
+        }
+        sdf_fn = self._sdf_fn(mapper)
+        start = time.perf_counter()
+        pose, info = self.tracker.track(points, sdf_fn, predicted, prior=predicted)
+        retried = bool(info["skipped"]) and not info["skipped"].startswith("too few points")
+        if retried:
+            pose, info = self.tracker.track(points, sdf_fn, self.history[-1], prior=predicted)
+        self.track_seconds += time.perf_counter() - start
+        if "inlier_share" in info:
+            self.fit_curve.append(
+                [int(frame.index), float(info["inlier_share"]), float(info["conditioning"])]
+            )
+        if info["skipped"]:
+            self._keep(info["skipped"].split(" (")[0])
+            return predicted
+        self.tracked_frames += 1
+        self.reinitialised_frames += int(retried)
+        self.degenerate_frames += int(info["degenerate"])
         return pose
 
     def _surface_points(self) -> np.ndarray:
@@ -194,11 +216,35 @@ class TrackedPose(PoseSource):
         return self._error_points
 
     # ---------------------------------------------------------------- outputs
+    @property
+    def frames_not_tracked(self) -> int:
+        """Frames after the first that kept the predicted pose, for any reason."""
+        return sum(self.kept.values())
+
+    def notes(self) -> list[str]:
+        """One line on the frames that were not tracked (none when every frame was)."""
+        if not self.frames_not_tracked:
+            return []
+        reasons = ", ".join(f"{n} {why}" for why, n in sorted(self.kept.items()))
+        return [
+            f"pose: {self.frames_not_tracked} frames not tracked, kept at the predicted pose "
+            f"({reasons}); {self.tracked_frames} tracked"
+        ]
+
     def metrics(self) -> dict:
+        attempts = self.tracked_frames + sum(
+            n for why, n in self.kept.items() if why != "no surface learned yet"
+        )
         out: dict = {
             "pose_frames_tracked": self.tracked_frames,
             "pose_frames_kept": dict(self.kept),
-            "pose_track_s_per_frame": self.track_seconds / max(self.tracked_frames, 1),
+            "pose_frames_not_tracked": self.frames_not_tracked,
+            "pose_frames_reinitialised": self.reinitialised_frames,
+            "pose_frames_degenerate": self.degenerate_frames,
+            "pose_notes": self.notes(),
+            # every solve's time, including the ones rejected, over the frames that tried
+            "pose_track_s_per_frame": self.track_seconds / max(attempts, 1),
+            "pose_fit_curve": [list(row) for row in self.fit_curve],
         }
         if self.curve:
             errors = np.array([row[2] for row in self.curve])
@@ -235,7 +281,10 @@ class TrackedPose(PoseSource):
             "history": [p.tolist() for p in self.history],
             "curve": [list(row) for row in self.curve],
             "kept": dict(self.kept),
+            "fit_curve": [list(row) for row in self.fit_curve],
             "tracked_frames": self.tracked_frames,
+            "reinitialised_frames": self.reinitialised_frames,
+            "degenerate_frames": self.degenerate_frames,
             "track_seconds": self.track_seconds,
         }
 
@@ -243,7 +292,10 @@ class TrackedPose(PoseSource):
         self.history = [np.asarray(p, dtype=np.float64) for p in state.get("history", [])]
         self.curve = [list(row) for row in state.get("curve", [])]
         self.kept = {str(k): int(v) for k, v in state.get("kept", {}).items()}
+        self.fit_curve = [list(row) for row in state.get("fit_curve", [])]
         self.tracked_frames = int(state.get("tracked_frames", 0))
+        self.reinitialised_frames = int(state.get("reinitialised_frames", 0))
+        self.degenerate_frames = int(state.get("degenerate_frames", 0))
         self.track_seconds = float(state.get("track_seconds", 0.0))
         if self.history:
             self.last_estimate = self.history[-1]

@@ -20,9 +20,15 @@ import numpy as np
 import torch
 from torch import Tensor
 
-from neuralfeels_sem.core.geometry import check_pose, invert_pose, orthonormalize_pose
+from neuralfeels_sem.core.geometry import check_pose, invert_pose
+from neuralfeels_sem.mapping.fit_check import conditioning, fit_failure, inlier_share
+from neuralfeels_sem.mapping.se3 import constant_velocity, se3_exp, se3_log
 
 log = logging.getLogger(__name__)
+
+__all__ = ["PoseTracker", "TrackerConfig", "constant_velocity", "se3_exp", "se3_log"]
+
+REJECTIONS_BEFORE_STOP = 4  # trial steps that raise the cost before a solve ends
 
 RobustLoss = Literal["huber", "cauchy"]
 ROBUST_LOSSES = get_args(RobustLoss)
@@ -36,12 +42,20 @@ class TrackerConfig:
         a larger step is treated like a failed one (more damping). Far from the surface
         the field's SDF is clamped and flat, and an undamped step once threw the pose
         10^27 m away.
-    max_motion_m: a result further than this from the starting (or predicted) pose is
-        rejected as diverged and the prediction kept.
+    max_motion_m, max_motion_rad: a result further than this from the starting (or
+        predicted) pose is rejected as diverged and the prediction kept.
     prior_weight: weight of the squared distance to the predicted pose, relative to the
         mean squared SDF residual (translation in metres, rotation times rotation_scale).
+        Weak on purpose: it only holds directions the points cannot see. At 0.01 it held
+        the zero-velocity start of a run and the tracker lagged the true motion.
     source_weights: per-point weight by source ("camera", or a finger name; "tactile"
-        applies to every finger); 0 drops that modality from tracking.
+        applies to every finger); 0 drops that modality from tracking. Touch is off by
+        default: a DIGIT holds its place while the surface slides under it, and the field
+        under a fingertip is learned from that fingertip alone (the camera cannot see
+        there), so touch points fit "the object did not move" best (docs/pose.md).
+    inlier_m, min_inlier_share, min_conditioning: a solve counts as tracked only when at
+        least min_inlier_share of the (weighted) points end within inlier_m of the
+        surface and its conditioning (fit_check.py) is at least min_conditioning.
     """
 
     iterations: int = 15  # Levenberg-Marquardt iterations per frame
@@ -50,16 +64,20 @@ class TrackerConfig:
     robust_scale: float = 0.001  # metres where the robust loss stops being quadratic
     min_points: int = 50  # fewer points: keep the predicted pose (>= 6 pose unknowns)
     damping: float = 1.0e-3  # initial LM damping
-    prior_weight: float = 0.01  # pull toward the constant-velocity prediction
+    prior_weight: float = 1.0e-4  # pull toward the constant-velocity prediction
     rotation_scale: float = 0.05  # metres per radian in the prior (about the object radius)
     max_step_m: float = 0.01
     max_step_rad: float = 0.2
     max_motion_m: float = 0.03
+    max_motion_rad: float = 0.5
     max_points_per_source: int = 1000  # camera, and each finger
     source_weights: dict[str, float] = field(
-        default_factory=lambda: {"camera": 1.0, "tactile": 1.0}
+        default_factory=lambda: {"camera": 1.0, "tactile": 0.0}
     )
-    tolerance: float = 1.0e-7  # stop when a step changes the pose less than this
+    inlier_m: float = 0.002  # about 5x the camera's depth noise on the surface
+    min_inlier_share: float = 0.5
+    min_conditioning: float = 1.0e-4
+    tolerance: float = 1.0e-6  # stop when a step changes the pose less than this (m, rad)
     seed: int = 0
 
     def __post_init__(self) -> None:
@@ -71,11 +89,16 @@ class TrackerConfig:
             )
         positive = (
             "robust_scale", "damping", "rotation_scale", "tolerance",
-            "max_step_m", "max_step_rad", "max_motion_m",
+            "max_step_m", "max_step_rad", "max_motion_m", "max_motion_rad", "inlier_m",
         )  # fmt: skip
         for name in positive:
             if getattr(self, name) <= 0:
                 raise ValueError(f"mapping.tracker.{name}={getattr(self, name)} must be > 0")
+        if not 0 <= self.min_inlier_share <= 1 or self.min_conditioning < 0:
+            raise ValueError(
+                f"mapping.tracker needs 0 <= min_inlier_share <= 1 ({self.min_inlier_share}) "
+                f"and min_conditioning >= 0 ({self.min_conditioning})"
+            )
         if self.prior_weight < 0:
             raise ValueError(f"mapping.tracker.prior_weight={self.prior_weight} must be >= 0")
         if self.min_points < 6 or self.max_points_per_source < 1:
@@ -87,63 +110,6 @@ class TrackerConfig:
             raise ValueError(
                 f"mapping.tracker.source_weights={dict(self.source_weights)} must be >= 0"
             )
-
-
-def _skew(w: np.ndarray) -> np.ndarray:
-    return np.array([[0.0, -w[2], w[1]], [w[2], 0.0, -w[0]], [-w[1], w[0], 0.0]])
-
-
-def se3_exp(xi: np.ndarray) -> np.ndarray:
-    """xi = (v, w) (6,) -> 4x4 rigid transform (Rodrigues, exact for any angle)."""
-    xi = np.asarray(xi, dtype=np.float64)
-    if xi.shape != (6,):
-        raise ValueError(f"se3_exp needs a (6,) vector, got {xi.shape}")
-    v, w = xi[:3], xi[3:]
-    theta = float(np.linalg.norm(w))
-    k = _skew(w)
-    if theta < 1e-8:
-        rot = np.eye(3) + k
-        jac = np.eye(3) + 0.5 * k
-    else:
-        a = np.sin(theta) / theta
-        b = (1.0 - np.cos(theta)) / theta**2
-        c = (theta - np.sin(theta)) / theta**3
-        rot = np.eye(3) + a * k + b * (k @ k)
-        jac = np.eye(3) + b * k + c * (k @ k)
-    out = np.eye(4)
-    out[:3, :3] = rot
-    out[:3, 3] = jac @ v
-    return out
-
-
-def se3_log(pose: np.ndarray) -> np.ndarray:
-    """4x4 rigid transform -> xi = (v, w) (6,), the inverse of se3_exp (angles below pi)."""
-    check_pose(pose, "pose")
-    rot = pose[:3, :3]
-    cos = np.clip((np.trace(rot) - 1.0) / 2.0, -1.0, 1.0)
-    theta = float(np.arccos(cos))
-    vee = np.array([rot[2, 1] - rot[1, 2], rot[0, 2] - rot[2, 0], rot[1, 0] - rot[0, 1]])
-    if theta < 1e-8:
-        w = 0.5 * vee
-    else:
-        w = theta / (2.0 * np.sin(theta)) * vee
-    k = _skew(w)
-    if theta < 1e-8:
-        jac_inv = np.eye(3) - 0.5 * k
-    else:
-        half = 0.5 * theta
-        jac_inv = np.eye(3) - 0.5 * k + (1.0 - half / np.tan(half)) / theta**2 * (k @ k)
-    return np.concatenate([jac_inv @ pose[:3, 3], w])
-
-
-def constant_velocity(poses: list[np.ndarray]) -> np.ndarray:
-    """Next world_T_object if the last body-frame motion repeats (the last pose when alone)."""
-    if not poses:
-        raise ValueError("constant_velocity needs at least one pose")
-    if len(poses) == 1:
-        return poses[-1].copy()
-    step = invert_pose(poses[-2]) @ poses[-1]
-    return orthonormalize_pose(poses[-1] @ step)
 
 
 def robust_weights(r: Tensor, loss: str, scale: float) -> tuple[Tensor, Tensor]:
@@ -169,7 +135,7 @@ class _Linearisation:
     obj_T_world: np.ndarray
     q: Tensor
     r: Tensor
-    g: Tensor
+    g: Tensor | None  # None for a trial pose scored by its cost alone
     err: np.ndarray | None
     cost: float
     w: Tensor
@@ -197,6 +163,10 @@ class PoseTracker:
         self.max_step_m = float(config.max_step_m)
         self.max_step_rad = float(config.max_step_rad)
         self.max_motion_m = float(config.max_motion_m)
+        self.max_motion_rad = float(config.max_motion_rad)
+        self.inlier_m = float(config.inlier_m)
+        self.min_inlier_share = float(config.min_inlier_share)
+        self.min_conditioning = float(config.min_conditioning)
         self.generator = torch.Generator().manual_seed(int(config.seed))
 
     def source_weight(self, source: str) -> float:
@@ -228,16 +198,23 @@ class PoseTracker:
         return torch.cat(pts), torch.cat(weights)
 
     def _linearise(
-        self, sdf_fn: Callable[[Tensor], Tensor], object_T_world: np.ndarray, pts: Tensor
-    ) -> tuple[Tensor, Tensor, Tensor]:
-        """Object-frame points q, residuals r = sdf(q) and gradients d sdf / d q (float64)."""
+        self,
+        sdf_fn: Callable[[Tensor], Tensor],
+        object_T_world: np.ndarray,
+        pts: Tensor,
+        gradient: bool = True,
+    ) -> tuple[Tensor, Tensor, Tensor | None]:
+        """Object-frame points q, residuals r = sdf(q) and, with `gradient`, d sdf / d q
+        (float64), all points in one forward (and one backward) pass."""
         t = torch.as_tensor(object_T_world, dtype=torch.float64)
         q = pts @ t[:3, :3].T + t[:3, 3]
+        x = q.to(torch.float32)
+        if not gradient:  # a trial step only needs its cost: no graph, no backward pass
+            with torch.no_grad():
+                return q, sdf_fn(x).reshape(len(x)).to(torch.float64), None
         with torch.enable_grad():
-            x = q.to(torch.float32).requires_grad_(True)
-            sdf = sdf_fn(x)
-            if sdf.shape != (len(x),):
-                sdf = sdf.reshape(len(x))
+            x.requires_grad_(True)
+            sdf = sdf_fn(x).reshape(len(x))
             (grad,) = torch.autograd.grad(sdf.sum(), x)
         return q, sdf.detach().to(torch.float64), grad.to(torch.float64)
 
@@ -275,11 +252,17 @@ class PoseTracker:
         pts: Tensor,
         weights: Tensor,
         prior_error: Callable[[np.ndarray], np.ndarray | None],
+        gradient: bool = True,
     ) -> _Linearisation:
-        q, r, g = self._linearise(sdf_fn, obj_T_world, pts)
+        q, r, g = self._linearise(sdf_fn, obj_T_world, pts, gradient)
         err = prior_error(obj_T_world)
         cost, w = self._cost(r, weights, err)
         return _Linearisation(obj_T_world, q, r, g, err, cost, w)
+
+    def _with_gradient(self, sdf_fn: Callable[[Tensor], Tensor], lin: _Linearisation, pts: Tensor):
+        """`lin` with its SDF gradients (computed once the trial step was accepted)."""
+        q, r, g = self._linearise(sdf_fn, lin.obj_T_world, pts)
+        return _Linearisation(lin.obj_T_world, q, r, g, lin.err, lin.cost, lin.w)
 
     def _normal_equations(
         self, cur: _Linearisation, weights: Tensor, prior_h: np.ndarray
@@ -303,14 +286,19 @@ class PoseTracker:
         prior_error: Callable[[np.ndarray], np.ndarray | None],
         info: dict,
     ) -> _Linearisation:
-        """Levenberg-Marquardt from `cur`; counts iterations and evaluations in `info`."""
+        """Levenberg-Marquardt from `cur`; counts iterations and evaluations in `info`.
+
+        Trial steps are scored by a forward pass alone; the gradient is computed only at
+        an accepted pose. An iteration whose last REJECTIONS_BEFORE_STOP trials all raise
+        the cost ends the solve: at a minimum, more damping only shortens the step.
+        """
         mu = self.damping
         prior_h = self.prior_weight * np.diag(self._prior_scale() ** 2)
         for it in range(self.iterations):
             info["iterations"] = it + 1
             h, b = self._normal_equations(cur, weights, prior_h)
-            step = None
-            while mu < 1e8:
+            step, rejections = None, 0
+            while mu < 1e8 and rejections < REJECTIONS_BEFORE_STOP:
                 lhs = h + mu * np.diag(np.diag(h) + 1e-12)
                 delta = -np.linalg.solve(lhs, b)
                 too_far = np.linalg.norm(delta[:3]) > self.max_step_m
@@ -318,14 +306,15 @@ class PoseTracker:
                     mu *= 10.0
                     continue
                 cand = self._evaluate(
-                    sdf_fn, se3_exp(delta) @ cur.obj_T_world, pts, weights, prior_error
+                    sdf_fn, se3_exp(delta) @ cur.obj_T_world, pts, weights, prior_error, False
                 )
                 info["evaluations"] += 1
                 if cand.cost <= cur.cost:
-                    step, cur = delta, cand
+                    step, cur = delta, self._with_gradient(sdf_fn, cand, pts)
                     mu = max(mu / 10.0, 1e-9)
                     break
                 mu *= 10.0
+                rejections += 1
             if step is None or np.linalg.norm(step) < self.tolerance:
                 break
         return cur
@@ -352,9 +341,7 @@ class PoseTracker:
         info: dict = {"points": len(pts), "iterations": 0, "evaluations": 0, "skipped": None}
         fallback = (prior if prior is not None else init_world_T_object).copy()
         if len(pts) < self.min_points:
-            info["skipped"] = f"too few points ({len(pts)} < {self.min_points})"
-            log.warning("pose tracking kept the predicted pose: %s", info["skipped"])
-            return fallback, info
+            return self._reject(fallback, info, f"too few points ({len(pts)} < {self.min_points})")
         prior_error = self._prior_error(prior)
         start = self._evaluate(
             sdf_fn,
@@ -363,14 +350,47 @@ class PoseTracker:
             weights,
             prior_error,
         )
+        if not (torch.isfinite(start.r).all() and torch.isfinite(start.g).all()):
+            return self._reject(fallback, info, "diverged (non-finite SDF at the start)")
         info["initial_rms_mm"] = _rms_mm(start.r, weights)
         best = self._minimise(sdf_fn, start, pts, weights, prior_error, info)
         info["final_rms_mm"] = _rms_mm(best.r, weights)
         info["cost"] = best.cost
         result = invert_pose(best.obj_T_world)
-        moved = float(np.linalg.norm(result[:3, 3] - fallback[:3, 3]))
-        if not np.isfinite(result).all() or moved > self.max_motion_m:
-            info["skipped"] = f"diverged ({moved:.3g} m from the prediction)"
-            log.warning("pose tracking kept the predicted pose: %s", info["skipped"])
-            return fallback, info
+        reason = self._divergence(result, fallback) or self._misfit(best, weights, info)
+        if reason:
+            return self._reject(fallback, info, reason)
         return result, info
+
+    def _reject(self, fallback: np.ndarray, info: dict, reason: str) -> tuple[np.ndarray, dict]:
+        info["skipped"] = reason
+        log.warning("pose tracking kept the predicted pose: %s", reason)
+        return fallback, info
+
+    def _divergence(self, result: np.ndarray, fallback: np.ndarray) -> str | None:
+        """Why `result` counts as a diverged solve (None: it stayed within the caps)."""
+        if not np.isfinite(result).all():
+            return "diverged (non-finite pose)"
+        moved = float(np.linalg.norm(result[:3, 3] - fallback[:3, 3]))
+        turned = float(np.linalg.norm(se3_log(invert_pose(fallback) @ result)[3:]))
+        if moved > self.max_motion_m or turned > self.max_motion_rad:
+            return f"diverged ({moved:.3g} m, {turned:.3g} rad from the prediction)"
+        return None
+
+    def _misfit(self, best: _Linearisation, weights: Tensor, info: dict) -> str | None:
+        """Why the solution does not fit the frame (fit_check.py; None: it does).
+
+        An ill-conditioned solve is rejected only without a prior: with one, the prior
+        holds the unseen directions at the prediction (a sphere's spin) while the points
+        fix the rest, so the frame counts as tracked and info["degenerate"] says so.
+        """
+        info["inlier_share"] = inlier_share(best.r, weights, self.inlier_m)
+        info["conditioning"] = conditioning(best.q, best.g, weights, self.rotation_scale)
+        info["degenerate"] = not info["conditioning"] >= self.min_conditioning
+        held_by_prior = best.err is not None
+        return fit_failure(
+            info["inlier_share"],
+            info["conditioning"],
+            self.min_inlier_share,
+            0.0 if held_by_prior else self.min_conditioning,
+        )

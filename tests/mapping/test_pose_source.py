@@ -190,7 +190,13 @@ def test_tracker_config_builds_the_tracker_only_for_tracking_modes(obj) -> None:
     from neuralfeels_sem.configs import to_config
     from tests.helpers import compose_config
 
-    cfg = compose_config(["mapping.pose=track", "mapping.tracker.source_weights.camera=0"])
+    cfg = compose_config(
+        [
+            "mapping.pose=track",
+            "mapping.tracker.source_weights.camera=0",
+            "mapping.tracker.source_weights.tactile=1",
+        ]
+    )
     config = to_config(TrackerConfig, cfg.mapping.tracker)
     source = build_pose_source(cfg.mapping.pose, obj, config)
     tracker = source.tracker

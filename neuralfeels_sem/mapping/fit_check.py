@@ -1,0 +1,54 @@
+"""Whether a tracked pose fits its frame: the checks a solve must pass to count as tracked.
+
+A Levenberg-Marquardt solve always returns a pose; it is only worth mapping with when the
+points it aligned actually sit on the surface and pin all six degrees of freedom. Two
+measures decide (thresholds in TrackerConfig, docs/pose.md):
+
+- inlier share: the source-weighted share of points within `inlier_m` of the zero level
+  set at the solution. A frame the field cannot explain (a surface not learned yet, a
+  wrong basin) leaves most points off the surface.
+- conditioning: the smallest over the largest eigenvalue of the data term's Gauss-Newton
+  matrix, rotation measured in metres at `rotation_scale`. Near zero, some motion moves
+  no point off the surface (a sphere's spin, a plane's slide) and the solve is a guess
+  in that direction.
+"""
+
+from __future__ import annotations
+
+import numpy as np
+import torch
+from torch import Tensor
+
+
+def inlier_share(r: Tensor, weights: Tensor, inlier_m: float) -> float:
+    """Source-weighted share (0-1) of residuals r (N,) with |r| <= inlier_m."""
+    total = float(weights.sum())
+    if total <= 0:
+        return 0.0
+    return float((weights * (r.abs() <= inlier_m)).sum()) / total
+
+
+def conditioning(q: Tensor, g: Tensor, weights: Tensor, rotation_scale: float) -> float:
+    """Smallest / largest eigenvalue (0-1) of the data Gauss-Newton matrix at a pose.
+
+    q: (N, 3) object-frame points, g: (N, 3) SDF gradients there, weights: (N,).
+    Rotation is measured as the arc it moves a point at rotation_scale from the origin,
+    so both blocks are in metres (rotation columns divided by rotation_scale).
+    """
+    jac = torch.cat([g, torch.linalg.cross(q, g) / rotation_scale], dim=1)
+    h = ((jac * weights[:, None]).T @ jac).numpy()
+    eig = np.linalg.eigvalsh(0.5 * (h + h.T))
+    if not np.isfinite(eig).all() or eig[-1] <= 0:
+        return 0.0
+    return float(max(eig[0], 0.0) / eig[-1])
+
+
+def fit_failure(
+    share: float, cond: float, min_inlier_share: float, min_conditioning: float
+) -> str | None:
+    """Why a solve does not count as tracked (None: it fits)."""
+    if not np.isfinite(share) or share < min_inlier_share:
+        return f"poor fit (inlier share {share:.2f} < {min_inlier_share})"
+    if not np.isfinite(cond) or cond < min_conditioning:
+        return f"ill-conditioned (conditioning {cond:.2g} < {min_conditioning:g})"
+    return None
