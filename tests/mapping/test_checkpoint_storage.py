@@ -13,6 +13,7 @@ from neuralfeels_sem.fields.hash_grid import HashGridConfig
 from neuralfeels_sem.fields.optim import FieldAdam
 from neuralfeels_sem.fields.semantic_field import SemanticFieldConfig
 from neuralfeels_sem.mapping import checkpoint_codec as codec
+from neuralfeels_sem.mapping.byte_planes import pack_planes, packed_bytes, unpack_planes
 from neuralfeels_sem.mapping.checkpoint import load_checkpoint, save_checkpoint
 from neuralfeels_sem.mapping.field_init import build_field
 from neuralfeels_sem.mapping.mapper import MapperConfig, OnlineMapper
@@ -170,6 +171,19 @@ def test_moment_codes_keep_tiny_moments_that_float16_loses() -> None:
     keep = v != 0
     assert torch.allclose(back_v[keep], v[keep], rtol=0.1)
     assert torch.allclose(back_m[keep], m[keep], rtol=0.1, atol=1e-10)
+
+
+@pytest.mark.parametrize("dtype", [torch.float16, torch.float32, torch.int8, torch.uint8])
+def test_byte_planes_are_lossless_and_deflate_repeated_bytes(dtype) -> None:
+    generator = torch.Generator().manual_seed(0)
+    values = (torch.randn(3000, 2, generator=generator) * 20).to(dtype)
+    back = unpack_planes(pack_planes(values))
+    assert back.dtype == dtype and torch.equal(back, values)
+    repeated = torch.zeros(4096, dtype=dtype)
+    raw = repeated.numel() if dtype.is_floating_point else 0  # a float's lowest byte: as is
+    assert (
+        packed_bytes(pack_planes(repeated)) < raw + repeated.numel() * repeated.element_size() / 8
+    )
 
 
 @pytest.mark.slow
