@@ -14,7 +14,9 @@ sweep varied (the aggregate's groups), and draws what applies:
 - `classifier_per_sensor.png`: from train/eval_classifier jobs' report.json, test accuracy
   per sensor (mean ± std over runs, as figure 3B);
 - `maps_grid.png`: every mapping job's final material map (its material_maps.png) with
-  its setting and mean-class matching beside the majority map's (maps_grid.py).
+  its setting and mean-class matching beside the majority map's (maps_grid.py);
+- `pose_curves.png`: every tracked run's pose error over time, per object
+  (pose_sweep_plot.py).
 Jobs that failed or lack files are skipped; a plot that cannot be drawn is logged, never raised.
 """
 
@@ -29,6 +31,7 @@ from matplotlib.figure import Figure
 
 from neuralfeels_sem.viz.finger_material_plots import FINGER_ORDER, ordered, plot_finger_material
 from neuralfeels_sem.viz.maps_grid import MAPS_FILE, MapTile, plot_maps_grid, tile_title
+from neuralfeels_sem.viz.pose_sweep_plot import plot_pose_curves
 
 log = logging.getLogger(__name__)
 
@@ -294,6 +297,8 @@ def plot_experiment(summary: dict, sweep_dir: Path, dpi: int = 120) -> list[Path
             lambda: plot_runs_matching(with_curve, varying, sweep_dir / "matching_curves.png", dpi),
         )
     attempt("ablation", lambda: plot_groups(summary, sweep_dir / "ablation.png", dpi))
+    pose_png = sweep_dir / "pose_curves.png"
+    attempt("pose_curves", lambda: plot_pose_curves(loaded, varying, pose_png, dpi))
     reports = [
         r for job in jobs if isinstance(r := _load_metrics(sweep_dir, job, "report.json"), dict)
     ]
