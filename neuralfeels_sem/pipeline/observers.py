@@ -18,7 +18,8 @@ from neuralfeels_sem.core.frame import Frame
 @runtime_checkable
 class FrameObserver(Protocol):
     def on_frame(self, frame: Frame, labels: dict, world_T_object: np.ndarray, mapper) -> None:
-        """After `frame` was added to `mapper`; `labels`: finger -> class index (-1: none)."""
+        """After `frame` was added to `mapper`; `labels`: finger -> TouchLabel
+        (perception/touch.py: contact, class index or NO_LABEL, confidence, probabilities)."""
 
     def on_scores(self, frame_index: int, scores: dict | None, mapper) -> None:
         """After a scoring pass (`scores` None where the run has no ground truth)."""
