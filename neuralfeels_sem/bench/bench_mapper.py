@@ -87,9 +87,16 @@ def _short_default_run() -> dict:
             f"hydra.run.dir={out}",
         ]  # fmt: skip
         start = time.perf_counter()
-        done = subprocess.run(
-            command, cwd=REPO_DIR, capture_output=True, text=True, timeout=SHORT_RUN_TIMEOUT_S
-        )
+        try:
+            done = subprocess.run(
+                command, cwd=REPO_DIR, capture_output=True, text=True, timeout=SHORT_RUN_TIMEOUT_S
+            )
+        except subprocess.TimeoutExpired:
+            # A loaded machine: keep the step figures, say what happened to this one.
+            return {
+                "error": f"no result within {SHORT_RUN_TIMEOUT_S} s "
+                f"(load average {os.getloadavg()[0]:.1f})"
+            }
         process_s = time.perf_counter() - start
         metrics_path = Path(out) / "metrics.json"
         if done.returncode != 0 or not metrics_path.exists():
