@@ -22,16 +22,12 @@ from neuralfeels_sem.core.errors import ConfigError, DataError
 from neuralfeels_sem.mapping.checkpoint_codec import INIT_KEY, decode, encode
 from neuralfeels_sem.mapping.field_init import adopt_init_state
 from neuralfeels_sem.mapping.mapper import OnlineMapper
-from neuralfeels_sem.mapping.provenance import NOT_MODEL_SETTINGS, Provenance
+from neuralfeels_sem.mapping.provenance import Provenance, differing_settings
 
 # 2 added the provenance; version 1 files still load (task=eval) but cannot be resumed.
 # 3 packs the hash tables (checkpoint_codec.py); versions 1 and 2 hold them whole and load.
 FORMAT_VERSION = 3
 READABLE_VERSIONS = (1, 2, 3)
-
-
-def _settings(model_config: dict) -> dict:
-    return {k: v for k, v in model_config.items() if k not in NOT_MODEL_SETTINGS}
 
 
 def field_signature(mapper: OnlineMapper) -> dict:
@@ -140,19 +136,12 @@ def load_checkpoint(
             f"checkpoint {path} was written for a different model ({', '.join(diff)} differ); resume with the model config it was trained with"
         )
     saved_config = payload["model_config"]
-    if (
-        model_config is not None
-        and saved_config is not None
-        and _settings(saved_config) != _settings(model_config)
-    ):
-        keys = sorted(
-            k
-            for k in set(_settings(model_config)) | set(_settings(saved_config))
-            if model_config.get(k) != saved_config.get(k)
-        )
-        raise ConfigError(
-            f"checkpoint {path} was written with a different model config (model.{', model.'.join(keys)}); resume with the same model settings"
-        )
+    if model_config is not None and saved_config is not None:
+        keys = differing_settings(saved_config, model_config)
+        if keys:
+            raise ConfigError(
+                f"checkpoint {path} was written with a different model config ({', '.join(keys)}); resume with the same model settings"
+            )
     mapper.load_state_dict(decode(payload["mapper"], mapper.field, f"checkpoint {path}"))
     if (init_rng := payload["mapper"].get(INIT_KEY)) is not None:
         adopt_init_state(mapper.field, init_rng)  # its untouched rows are the saved run's

@@ -7,11 +7,12 @@ across any of these with one line naming the checkpoint's side and this run's si
 from __future__ import annotations
 
 import hashlib
-from dataclasses import asdict, dataclass
+from dataclasses import MISSING, asdict, dataclass, fields, is_dataclass
 
 import numpy as np
 
 from neuralfeels_sem.core.errors import ConfigError
+from neuralfeels_sem.fields.semantic_field import SemanticFieldConfig
 
 # Keys an older `model` config carried that are not model settings (ignored when comparing,
 # so checkpoints written before they were dropped still resume): Hydra's instantiate keys,
@@ -66,12 +67,45 @@ class Provenance:
         )
 
 
-def _model_difference(saved: dict, current: dict) -> str | None:
-    """'model.a.b: 64 there, 32 here; ...' for the settings that differ, or None."""
+def _declared_defaults(cls) -> dict:
+    """A config dataclass's declared defaults, nested, without constructing it (the model
+    config has required keys such as num_classes)."""
+    out = {}
+    for f in fields(cls):
+        if f.default_factory is not MISSING:
+            value = f.default_factory()
+            out[f.name] = asdict(value) if is_dataclass(value) else value
+        elif f.default is not MISSING:
+            out[f.name] = f.default
+    return out
+
+
+def _default_settings() -> dict:
+    return flat_settings(_declared_defaults(SemanticFieldConfig))
+
+
+def comparable_settings(saved: dict, current: dict) -> tuple[dict, dict]:
+    """Both model configs flattened; a setting added after `saved` was written takes its
+    default there (a new setting's default keeps the behaviour from before it existed), so
+    older checkpoints of an unchanged model still resume."""
     saved_flat, current_flat = flat_settings(saved), flat_settings(current)
-    keys = sorted(
+    defaults = _default_settings()
+    added = {k: defaults[k] for k in current_flat if k not in saved_flat and k in defaults}
+    return {**added, **saved_flat}, current_flat
+
+
+def differing_settings(saved: dict, current: dict) -> list[str]:
+    """The flat keys (`model.a.b`) whose values differ between two model configs."""
+    saved_flat, current_flat = comparable_settings(saved, current)
+    return sorted(
         k for k in set(saved_flat) | set(current_flat) if saved_flat.get(k) != current_flat.get(k)
     )
+
+
+def _model_difference(saved: dict, current: dict) -> str | None:
+    """'model.a.b: 64 there, 32 here; ...' for the settings that differ, or None."""
+    saved_flat, current_flat = comparable_settings(saved, current)
+    keys = differing_settings(saved, current)
     if not keys:
         return None
     shown = [

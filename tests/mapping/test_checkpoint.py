@@ -139,3 +139,17 @@ def test_a_checkpoint_from_before_bound_left_the_model_config_still_loads(tmp_pa
     assert load_checkpoint(path, make_mapper(), model_config=settings)["frame_index"] == 0
     with pytest.raises(ConfigError, match="model.sdf"):
         load_checkpoint(path, make_mapper(), model_config={**settings, "sdf": {"hidden_dim": 32}})
+
+
+def test_a_checkpoint_from_before_a_setting_existed_resumes_at_its_default(tmp_path) -> None:
+    """model.material.grid_levels came later; its default (0, no grid) is what older
+    checkpoints ran, so they resume with it and are refused with any other value."""
+    path = tmp_path / "checkpoint.pt"
+    mapper = make_mapper()
+    feed(mapper, FRAMES[:1])
+    older = {"num_classes": 2, "material": {"sh_degree": 3}}
+    save_checkpoint(path, mapper, frame_index=0, model_config=older)
+    now = {"num_classes": 2, "material": {"sh_degree": 3, "grid_levels": 0}}
+    assert load_checkpoint(path, make_mapper(), model_config=now)["frame_index"] == 0
+    with pytest.raises(ConfigError, match="model.material.grid_levels"):
+        load_checkpoint(path, make_mapper(), model_config={**now, "material": {"grid_levels": 4}})
