@@ -78,36 +78,67 @@ def map_object(cfg: DictConfig, obj, sensor, out: Path, observers: Sequence = ()
     """Map an opened sensor's frames; writes every run output into `out`.
 
     `observers` (pipeline/observers.py) are told of every frame and scoring pass."""
-    classifier = instantiate(cfg.classifier)
     device = resolve_device(cfg.device)
+    session = build_session(cfg, obj, sensor, out, device, observers)
+    metrics = run_metrics(cfg, obj, sensor, session, device)
+    write_metrics(metrics, out / "metrics.json")
+    write_touches(
+        session.scorer.touch_log,
+        list(cfg.materials),
+        out / "touches.csv",
+        partial=metrics["partial"],
+    )
+    if cfg.viz.plots:
+        dpi = int(cfg.viz.dpi)
+        write_pictures(session.scorer.class_names, metrics, session.snapshots_dir, out, dpi)
+        session.pose_source.write_pictures(out, dpi)
+        write_segmentation_pictures(session.mapper.points, out)
+    print_summary(metrics, out)
+    if session.failure is not None:
+        raise _failed(session.failure, metrics, out)
+    if metrics["partial"]:
+        raise _interrupted(metrics, out)
+    return metrics
+
+
+def build_session(
+    cfg: DictConfig, obj, sensor, out: Path, device, observers: Sequence
+) -> MappingSession:
+    """The mapper, classifier, scorer and pose source of a run, in one session."""
+    # Built in this order (classifier first) so the field's random initialisation, and with
+    # it every figure, is the one earlier runs of the same seed had.
+    classifier = instantiate(cfg.classifier)
     bound = BOUND_MARGIN * obj.bounds_radius
     mapper = build_mapper(cfg, bound, device, sensor.hand_model())
-    model_cfg = model_config(cfg)
     scorer = build_scorer(cfg, obj)
     # A PoseTracker is built only when mapping.pose tracks.
     tracker = to_config(TrackerConfig, cfg.mapping.tracker)
-    pose_source = build_pose_source(cfg.mapping.pose, obj, tracker)
     settings = SessionSettings(
         every_k_frames=int(cfg.eval.every_k_frames),
         checkpoint_every=int(cfg.mapping.checkpoint_every),
         progression_snapshots=int(cfg.viz.progression_snapshots),
         max_lag_s=float(cfg.mapping.max_lag_s),
     )
-    session = MappingSession(
+    return MappingSession(
         mapper,
         classifier,
         scorer,
-        pose_source,
+        build_pose_source(cfg.mapping.pose, obj, tracker),
         out,
         bound,
-        model_cfg,
+        model_config(cfg),
         settings,
         provenance=run_provenance(cfg, obj),
         observers=observers,
     )
-    run_metrics = session.run(sensor, resume=cfg.mapping.resume)
-    metrics = {
-        **run_metrics,
+
+
+def run_metrics(cfg: DictConfig, obj, sensor, session: MappingSession, device) -> dict:
+    """Run the session and gather metrics.json: scores, timing, provenance of the figures."""
+    scores = session.run(sensor, resume=cfg.mapping.resume)
+    mapper, pose_source = session.mapper, session.pose_source
+    return {
+        **scores,
         "machine": machine_info(device),
         "load_avg": load_avg(),  # 1, 5, 15 min at the end
         "trained_on": mapper.trained_on,
@@ -125,7 +156,7 @@ def map_object(cfg: DictConfig, obj, sensor, out: Path, observers: Sequence = ()
         "config": {
             "object": cfg.object.name,
             "sensor": cfg.sensor.name,
-            "model": model_cfg,
+            "model": session.model_config,
             "classifier": cfg.classifier.get("_target_"),
             "fingers": list(cfg.sensor.get("fingers", [])) if "fingers" in cfg.sensor else None,
             "seed": int(cfg.seed),
@@ -134,20 +165,6 @@ def map_object(cfg: DictConfig, obj, sensor, out: Path, observers: Sequence = ()
             "object_generation": getattr(obj, "generation", None),
         },
     }
-    write_metrics(metrics, out / "metrics.json")
-    write_touches(
-        scorer.touch_log, list(cfg.materials), out / "touches.csv", partial=metrics["partial"]
-    )
-    if cfg.viz.plots:
-        write_pictures(scorer.class_names, metrics, session.snapshots_dir, out, int(cfg.viz.dpi))
-        pose_source.write_pictures(out, int(cfg.viz.dpi))
-        write_segmentation_pictures(mapper.points, out)
-    print_summary(metrics, out)
-    if session.failure is not None:
-        raise _failed(session.failure, metrics, out)
-    if metrics["partial"]:
-        raise _interrupted(metrics, out)
-    return metrics
 
 
 def _one_line(error: BaseException) -> str:
