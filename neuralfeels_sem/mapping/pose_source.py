@@ -79,6 +79,10 @@ class PoseSource:
         """Pose-error figures for metrics.json (none for the ground-truth pose)."""
         return {}
 
+    def notes(self) -> list[str]:
+        """Lines for metrics.json `notes` (none for the ground-truth pose)."""
+        return []
+
     def write_pictures(self, out_dir, dpi: int) -> None:
         """Pose-error plot (pose_error.png) for tracking sources; nothing for `gt`."""
 

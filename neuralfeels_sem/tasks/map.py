@@ -139,6 +139,8 @@ def run_metrics(cfg: DictConfig, obj, sensor, session: MappingSession, device) -
     mapper, pose_source = session.mapper, session.pose_source
     return {
         **scores,
+        # what the run's figures rest on: the scorer's notes, then frames not tracked
+        "notes": [*scores.get("notes", []), *pose_source.notes()],
         "machine": machine_info(device),
         "load_avg": load_avg(),  # 1, 5, 15 min at the end
         "trained_on": mapper.trained_on,

@@ -158,3 +158,9 @@ def test_batched_field_gradient_equals_the_fields_own() -> None:
     torch.testing.assert_close(r, sdf.detach().to(torch.float64), rtol=0, atol=1e-7)
     torch.testing.assert_close(r_trial, r, rtol=0, atol=1e-7)
     torch.testing.assert_close(g, grad.to(torch.float64), rtol=1e-5, atol=1e-6)
+
+
+def test_the_ground_truth_pose_adds_no_note() -> None:
+    from neuralfeels_sem.mapping.pose_source import PoseSource
+
+    assert PoseSource().notes() == [] and PoseSource().metrics() == {}
