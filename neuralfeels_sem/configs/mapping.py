@@ -13,6 +13,7 @@ from __future__ import annotations
 from dataclasses import dataclass, field
 
 from neuralfeels_sem.fields.optim import OptimizerConfig
+from neuralfeels_sem.mapping.checkpoint_codec import STORAGES
 from neuralfeels_sem.mapping.mapper import MapperConfig
 from neuralfeels_sem.mapping.pose_source import POSE_SOURCES
 from neuralfeels_sem.mapping.pose_tracker import TrackerConfig
@@ -40,6 +41,10 @@ class MappingConfig:
     # world by more; room for one mapped frame plus its perception on the 2-core CPU under
     # load (docs/usage.md).
     max_lag_s: float = 2.0
+    # How checkpoint.pt stores the hash tables (mapping/checkpoint_codec.py): auto = exact
+    # float32 while that fits 40 MB, else compact (float16 table, 8-bit Adam moments);
+    # exact = always bit-for-bit resumable; compact = always the small form.
+    checkpoint_storage: str = "auto"
     optimizer: OptimizerConfig = field(default_factory=OptimizerConfig)
     mapper: MapperConfig = field(default_factory=MapperConfig)
     tracker: TrackerConfig = field(default_factory=TrackerConfig)  # read when pose tracks
@@ -51,6 +56,10 @@ class MappingConfig:
             raise ValueError(f"mapping.pose={self.pose} must be one of {POSE_SOURCES}")
         if self.checkpoint_every < 0:
             raise ValueError(f"mapping.checkpoint_every={self.checkpoint_every} must be >= 0")
+        if self.checkpoint_storage not in STORAGES:
+            raise ValueError(
+                f"mapping.checkpoint_storage={self.checkpoint_storage} must be one of {STORAGES}"
+            )
         if not 0.0 < self.max_lag_s <= 3600.0:
             raise ValueError(f"mapping.max_lag_s={self.max_lag_s} must be in (0, 3600] seconds")
 

@@ -59,6 +59,7 @@ class SessionSettings:
     checkpoint_every: int  # 0: only the final checkpoint
     progression_snapshots: int
     max_lag_s: float  # read at sensor.pace=realtime
+    checkpoint_storage: str = "auto"  # mapping.checkpoint_storage (checkpoint_codec.py)
 
 
 class MappingSession:
@@ -344,6 +345,7 @@ class MappingSession:
             extra,
             self.model_config,
             self.provenance,
+            storage=self.settings.checkpoint_storage,
         )
 
     def _snapshot(self, time_s: float, frame_index: int) -> None:

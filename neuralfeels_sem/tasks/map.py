@@ -118,6 +118,7 @@ def build_session(
         checkpoint_every=int(cfg.mapping.checkpoint_every),
         progression_snapshots=int(cfg.viz.progression_snapshots),
         max_lag_s=float(cfg.mapping.max_lag_s),
+        checkpoint_storage=str(cfg.mapping.checkpoint_storage),
     )
     return MappingSession(
         mapper,

@@ -1,4 +1,5 @@
-"""Observers see every mapped frame and scoring pass, and do not change the run."""
+"""Observers see every mapped frame and scoring pass, and do not change the run; the
+session's settings reach its checkpoints."""
 
 from __future__ import annotations
 
@@ -39,8 +40,18 @@ class Recorder:
         self.closed += 1
 
 
-def test_an_observer_sees_every_frame_and_scoring_pass(tmp_path) -> None:
-    cfg = compose_config(SMALL)
+def test_an_observer_sees_every_frame_and_scoring_pass(tmp_path, monkeypatch) -> None:
+    import neuralfeels_sem.pipeline.mapping_session as session_module
+
+    storages = []
+    save = session_module.save_checkpoint
+
+    def recording_save(*args, storage="auto", **kwargs):
+        storages.append(storage)
+        return save(*args, storage=storage, **kwargs)
+
+    monkeypatch.setattr(session_module, "save_checkpoint", recording_save)
+    cfg = compose_config([*SMALL, "mapping.checkpoint_storage=exact"])
     obj = instantiate(cfg.object)
     sensor = build_sensor(cfg.sensor, obj, list(cfg.materials))
     recorder = Recorder()
@@ -55,3 +66,4 @@ def test_an_observer_sees_every_frame_and_scoring_pass(tmp_path) -> None:
     assert recorder.closed == 1
     assert all(set(labels) <= {"index", "middle", "ring", "thumb"} for labels in recorder.labels)
     assert np.isfinite(metrics["matching_mean_class_pct"])
+    assert storages and set(storages) == {"exact"}  # mapping.checkpoint_storage reaches the file

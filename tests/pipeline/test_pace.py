@@ -97,3 +97,9 @@ def test_pace_defaults_and_range_checks() -> None:
     for bad in (0.0, -1.0):
         with pytest.raises(ValueError, match="mapping.max_lag_s"):
             MappingConfig(max_lag_s=bad)
+
+
+def test_checkpoint_storage_is_one_of_the_codecs() -> None:
+    assert MappingConfig(checkpoint_storage="exact").checkpoint_storage == "exact"
+    with pytest.raises(ValueError, match="mapping.checkpoint_storage=zip must be one of"):
+        MappingConfig(checkpoint_storage="zip")
