@@ -33,6 +33,7 @@ from neuralfeels_sem.core.frame import Frame
 from neuralfeels_sem.core.geometry import backproject, invert_pose, transform_points
 from neuralfeels_sem.core.palette import class_colours
 from neuralfeels_sem.mapping.mesh import extract_mesh
+from neuralfeels_sem.perception.touch import NO_LABEL, TouchLabel
 
 log = logging.getLogger(__name__)
 
@@ -116,7 +117,7 @@ class RerunLiveView:
             )
             centres.append(centre[0])
             label = _touch_class(labels.get(finger))
-            if label >= 0:
+            if label != NO_LABEL:
                 self.touches.append((transform_points(object_T_world, centre)[0], label))
         if centres:
             self.rec.log("world/hand/gel_centres", rr.Points3D(np.stack(centres), radii=0.003))
@@ -171,14 +172,9 @@ class RerunLiveView:
         self.rec.disconnect()
 
 
-def _touch_class(label) -> int:
-    """Class index of a touch's classification (perception/touch.py TouchLabel, or a plain
-    index), -1 when it has none or no contact."""
-    if label is None:
-        return -1
-    if hasattr(label, "label"):
-        return int(label.label) if label.contact else -1
-    return int(label)
+def _touch_class(label: TouchLabel | None) -> int:
+    """Class index of a touch's classification, NO_LABEL without contact or class."""
+    return label.label if label is not None and label.contact else NO_LABEL
 
 
 def _transform(rr, pose: np.ndarray):
