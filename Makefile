@@ -10,7 +10,10 @@ export PYOPENGL_PLATFORM ?= egl
 export MUJOCO_GL ?= egl
 # Debian libraries for headless EGL rendering (pyrender, MuJoCo) and libusb for pyrealsense2.
 APT_PACKAGES := libegl1 libgl1 libgbm1 libegl-mesa0 libgl1-mesa-dri libusb-1.0-0
-PYTEST_DEFAULT := -m "not slow and not gpu and not hardware"
+# One test worker per core (pytest-xdist); each module stays on one worker so its fixtures
+# are built once.
+PYTEST_PARALLEL := -n auto --dist loadscope
+PYTEST_DEFAULT := -m "not slow and not gpu and not hardware" $(PYTEST_PARALLEL)
 
 .PHONY: setup run test test-all test-gpu bench lint format clean system-libs
 
@@ -48,7 +51,7 @@ test: $(STAMP)
 	$(PY) -m pytest $(PYTEST_DEFAULT) -q
 
 test-all: $(STAMP)
-	$(PY) -m pytest -m "not gpu and not hardware" -q
+	$(PY) -m pytest -m "not gpu and not hardware" $(PYTEST_PARALLEL) -q
 
 test-gpu: $(STAMP)
 	$(PY) -m pytest -m gpu -q

@@ -33,7 +33,7 @@ INSTALL_REQUIRES = [
 
 EXTRAS = {
     "torch": ["torch==2.13.0"],
-    "dev": ["pytest>=8", "pytest-timeout>=2.3", "ruff>=0.6"],
+    "dev": ["pytest>=8", "pytest-timeout>=2.3", "pytest-xdist>=3.6", "ruff>=0.6"],
     "ray": ["hydra-ray-launcher==1.2.2"],
     # viz.live=rerun (viz/live.py); pinned to the minor version its logging API was written for.
     "live": ["rerun-sdk>=0.41,<0.42"],

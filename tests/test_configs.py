@@ -126,11 +126,15 @@ def test_cli_typo_fails_with_hydra_message() -> None:
     assert "Traceback" not in result.stderr
 
 
-def test_cli_help_and_cfg_job() -> None:
+@pytest.mark.slow  # Hydra lists every group's options by re-reading the config store: 7 s
+def test_cli_help_lists_the_config_groups() -> None:
     help_result = run_cli(["--help"])
     assert help_result.returncode == 0
     for group in ("sensor", "object", "model", "task", "launcher"):
         assert f"{group}:" in help_result.stdout
+
+
+def test_cli_cfg_job_prints_the_composed_config() -> None:
     cfg_result = run_cli(["--cfg", "job"])
     assert cfg_result.returncode == 0
     assert "materials:" in cfg_result.stdout
