@@ -11,11 +11,17 @@ The page has these parts:
   matching, F-score, classifier accuracy on judged touches and coverage;
 - single-material objects (the majority map already scores 100 %): classifier accuracy on
   judged touches, coverage, accuracy over all touches, F-score;
+- pose tracking: runs with `mapping.pose` other than `gt`, per run and per object, beside
+  the `pose=gt` run of the same object and seed (results_pose.py);
+- active touch: `sensor.policy` runs, scripted against active per object and seed
+  (results_policy.py);
 - every other setting (ablations, runs with overrides), one table per source;
 - speed, from a `make bench` report (`--bench bench.json`), each figure with its load;
-- per source: the simulator oracles the runs used, the machine and load where recorded.
+- per source: the simulator oracles the runs used, the machine and load where recorded,
+  and when the runs finished.
 A run belongs to the first two parts when its only overrides are the object, the seed and
-bookkeeping (experiment preset, launcher, hydra.*); any other override makes it a setting.
+bookkeeping (experiment preset, launcher, perception preset, viz.plots, hydra.*); any other
+override makes it a setting.
 """
 
 from __future__ import annotations
@@ -23,10 +29,13 @@ from __future__ import annotations
 import argparse
 import sys
 from collections.abc import Sequence
+from datetime import UTC, datetime
 from pathlib import Path
 
 from neuralfeels_sem.core.errors import DataError, UserError
 from neuralfeels_sem.eval.results_bench import speed_section
+from neuralfeels_sem.eval.results_policy import is_policy_run, policy_section
+from neuralfeels_sem.eval.results_pose import pose_runs, pose_section
 from neuralfeels_sem.eval.results_runs import (
     Run,
     Source,
@@ -68,6 +77,24 @@ def machine_text(runs: Sequence[Run]) -> str:
     return "; ".join(parts) if parts else "not recorded"
 
 
+def written_text(runs: Sequence[Run]) -> str:
+    """When the runs finished: the UTC range of their metrics.json modification times
+    (the runs do not record the code version, so the date is what places them)."""
+    stamps = []
+    for run in runs:
+        try:
+            stamps.append((run.path / "metrics.json").stat().st_mtime)
+        except OSError:
+            continue
+    if not stamps:
+        return "finish time not known"
+    low, high = (
+        datetime.fromtimestamp(t, tz=UTC).strftime("%Y-%m-%d %H:%M")
+        for t in (min(stamps), max(stamps))
+    )
+    return f"finished {low if low == high else f'{low} to {high}'} UTC"
+
+
 def plural(n: int, word: str) -> str:
     return f"{n} {word}{'' if n == 1 else 's'}"
 
@@ -102,7 +129,7 @@ def source_lines(source: Source) -> list[str]:
     if wall:
         low, high = f"{min(wall):.0f}", f"{max(wall):.0f}"
         machine += f"; wall time per run {low if low == high else f'{low}-{high}'} s"
-    return lines + [machine]
+    return lines + [machine, f"  - {written_text(source.runs)}"]
 
 
 # ---------------------------------------------------------------------------- page
@@ -151,12 +178,20 @@ def perception_section(runs: Sequence[Run]) -> list[str]:
     ]
 
 
+def own_section_runs(source: Source) -> list[Run]:
+    """Tracked runs (with their `pose=gt` partners) and active-touch runs: they have
+    sections of their own, not a settings table."""
+    tracked, partners = pose_runs(source)
+    return tracked + partners + [r for r in source.runs if is_policy_run(r)]
+
+
 def settings_sections(sources: Sequence[Source]) -> list[str]:
     """One table per source for its runs with other settings (ablations, overrides)."""
     lines = ["", "## Other settings", ""]
     other = False
     for source in sources:
-        members = [r for r in source.runs if r.setting]
+        own = {id(r) for r in own_section_runs(source)}
+        members = [r for r in source.runs if r.setting and id(r) not in own]
         if members:
             lines += settings_table(source, members) + [""]
             other = True
@@ -165,6 +200,8 @@ def settings_sections(sources: Sequence[Source]) -> list[str]:
 
 def render(sources: Sequence[Source], command: str, bench: Path | None = None) -> str:
     runs = [r for s in sources for r in s.runs]
+    defaults = [r for r in runs if not r.setting]
+    own = {id(r) for s in sources for r in own_section_runs(s)}
     lines = [
         "# Results",
         "",
@@ -178,7 +215,9 @@ def render(sources: Sequence[Source], command: str, bench: Path | None = None) -
         *INTRO,
         "",
         *material_sections(runs),
-        *perception_section(runs),
+        *perception_section([r for r in runs if id(r) not in own]),
+        *pose_section(sources, defaults),
+        *policy_section(sources, defaults),
         *settings_sections(sources),
         *speed_section(bench),
         "",

@@ -17,8 +17,8 @@ from neuralfeels_sem.eval.oracles import ORACLES, oracles_used
 # Overrides that do not change what a run measures.
 # `perception` (a preset of oracles) is not a setting here: the object tables have an
 # oracles column and pool runs only with the same oracles, so realistic and oracle runs
-# sit side by side there.
-BOOKKEEPING_KEYS = ("seed", "experiment", "launcher", "perception")
+# sit side by side there. `viz.plots` only decides whether pictures are drawn.
+BOOKKEEPING_KEYS = ("seed", "experiment", "launcher", "perception", "viz.plots")
 BOOKKEEPING_VALUES = {"task": "map", "sensor": "sim"}
 SINGLE_MATERIAL_FLOOR = 100.0 - 1e-6  # majority map's mean-class % on a one-material object
 
@@ -180,3 +180,21 @@ def describe_oracles(names: Sequence[str]) -> str:
     if not names:
         return "none (every input perceived as on a real rig)"
     return "; ".join(ORACLES.get(n, n) for n in names)
+
+
+def reference_run(run: Run, candidates: Sequence[Run], dropped: Sequence[str] = ()) -> Run | None:
+    """The default-config run of the same object and seed that `run` is compared with.
+
+    Its oracles must be those of `run` plus, at most, the ones named in `dropped` (a
+    tracked run drops `object_pose`, which its `pose=gt` reference uses); None when no
+    such run is among the candidates.
+    """
+    names, _ = oracles_of(run)
+    own = set(names or ()) - set(dropped)
+    for other in candidates:
+        if other.setting or other.object != run.object or other.seed != run.seed:
+            continue
+        theirs, _ = oracles_of(other)
+        if theirs is not None and set(theirs) - set(dropped) == own:
+            return other
+    return None

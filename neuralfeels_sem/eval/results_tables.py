@@ -212,7 +212,6 @@ def settings_table(source: Source, runs: Sequence[Run]) -> list[str]:
     keys = sorted({k for r in runs for k in r.setting})
     varying = [k for k in keys if len({r.setting.get(k) for r in runs}) > 1]
     constant = [k for k in keys if k not in varying]
-    with_pose = any(get(r.metrics, "pose_error_mm") is not None for r in runs)
     rows = []
     for label, members in group_by(runs, lambda r: setting_label(r, varying)).items():
         floor, _ = majority_cells(members)
@@ -225,8 +224,6 @@ def settings_table(source: Source, runs: Sequence[Run]) -> list[str]:
             matching_cell(members),
             fmt(mean(values_of(members, "fscore_5mm")), 3),
         ]
-        if with_pose:
-            row.append(fmt(mean(values_of(members, "pose_error_mm")), 2))
         rows.append(row)
     header = [
         "setting",
@@ -236,7 +233,7 @@ def settings_table(source: Source, runs: Sequence[Run]) -> list[str]:
         "margin",
         "matching % (majority)",
         "F-score @5 mm",
-    ] + (["pose error mm"] if with_pose else [])
+    ]
     lines = [f"### `{source.label}`", ""]
     if constant:
         fixed = ", ".join(f"`{k}={runs[0].setting[k]}`" for k in constant)

@@ -202,21 +202,24 @@ def test_header_sources_oracles_and_failures(tmp_path: Path, object_sweep: Path)
 def test_ablation_sweep_gets_a_settings_table(tmp_path: Path) -> None:
     sweep = tmp_path / "ablation"
     k = 0
-    for pose, value, error in (("gt", 90.0, None), ("track", 60.0, 30.0)):
+    for radius, value in (("0.02", 90.0), ("0.01", 60.0)):
         for seed in (0, 1):
-            extra = {} if error is None else {"pose_error_mm": error + seed}
-            metrics = run_metrics(value + seed, 95.0, 50.0, 54.0, "plastic", fscore=0.9, **extra)
-            overrides = ["object=patched_toy", f"mapping.pose={pose}", "sensor.duration_s=3"]
+            metrics = run_metrics(value + seed, 95.0, 50.0, 54.0, "plastic", fscore=0.9)
+            overrides = [
+                "object=patched_toy",
+                f"mapping.mapper.label_vote_radius={radius}",
+                "sensor.duration_s=3",
+            ]
             write_job(sweep, str(k), [*overrides, f"seed={seed}"], metrics)
             k += 1
     page = generate(tmp_path, sweep)
     other = section(page, "Other settings")
     assert "Every run here: `sensor.duration_s=3`." in other
-    row = cells(other, "object=patched_toy, mapping.pose=track")
-    assert row[1:] == ["2", "**60.5 ± 0.7**", "50.0 (plastic)", "+10.5", "95.0 (54.0)", "0.900"] + [
-        "30.50"
-    ]
-    assert cells(other, "object=patched_toy, mapping.pose=gt")[-1] == "n/a"
+    row = cells(other, "object=patched_toy, mapping.mapper.label_vote_radius=0.01")
+    assert row[1:] == ["2", "**60.5 ± 0.7**", "50.0 (plastic)", "+10.5", "95.0 (54.0)", "0.900"]
+    assert cells(other, "object=patched_toy, mapping.mapper.label_vote_radius=0.02")[2] == (
+        "**90.5 ± 0.7**"
+    )
     # Runs with settings never reach the object tables.
     assert "No default-config multi-material runs." in page
 

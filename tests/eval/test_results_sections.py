@@ -1,0 +1,171 @@
+"""The pose-tracking and active-touch sections of the results page, on small fake sweeps."""
+
+from __future__ import annotations
+
+from pathlib import Path
+
+import pytest
+
+from tests.eval.test_results_page import cells, generate, run_metrics, section, table_rows
+from tests.viz.test_sweep_plots import write_job
+
+
+def curve(values: list[float]) -> list[list[float]]:
+    """A mean-class curve scored every 5 frames at 10 Hz: [frame, time_s, value]."""
+    return [[5 * k, 0.5 * k, v] for k, v in enumerate(values)]
+
+
+@pytest.fixture
+def default_sweep(tmp_path: Path) -> Path:
+    """The `pose=gt` default-config runs the tracked and active runs are compared with."""
+    sweep = tmp_path / "multirun" / "defaults"
+    for seed, value in enumerate((96.0, 92.0)):
+        metrics = run_metrics(value, 95.0, 50.0, 54.0, "plastic", fscore=0.98 + 0.01 * seed)
+        metrics["oracles"] = ["object_pose"]
+        metrics["matching_mean_class_curve"] = curve([50.0, 91.0, value])
+        write_job(sweep, str(seed), ["object=patched_toy", f"seed={seed}"], metrics)
+    return sweep
+
+
+def tracked_metrics(value: float, error: float, seconds: float, load: float, **extra) -> dict:
+    return run_metrics(
+        value,
+        95.0,
+        50.0,
+        54.0,
+        "plastic",
+        fscore=0.9,
+        oracles=[],  # a tracked run drops the simulator's pose
+        pose_error_mm=error,
+        pose_error_max_mm=2 * error,
+        pose_error_final_mm=error + 0.5,
+        pose_frames_not_tracked=1,
+        pose_frames_reinitialised=2,
+        pose_track_s_per_frame=seconds,
+        load_avg=[load, 1.0, 1.0],
+        **extra,
+    )
+
+
+def test_tracked_runs_get_the_pose_section_beside_the_pose_gt_runs(
+    tmp_path: Path, default_sweep: Path
+) -> None:
+    sweep = tmp_path / "multirun" / "track"
+    for seed, (value, error, seconds, load) in enumerate(
+        ((90.0, 1.0, 2.0, 4.0), (80.0, 3.0, 1.0, 2.0))
+    ):
+        metrics = tracked_metrics(value, error, seconds, load)
+        write_job(
+            sweep, str(seed), ["object=patched_toy", f"seed={seed}", "mapping.pose=track"], metrics
+        )
+    write_job(  # no pose=gt run of this object: its reference cells say so
+        sweep,
+        "2",
+        ["object=patchwork", "seed=0", "mapping.pose=track"],
+        tracked_metrics(70.0, 9.0, 1.0, 3.0),
+    )
+    page = generate(tmp_path, default_sweep, sweep)
+    pose = section(page, "Pose tracking")
+    assert "Every run here: `mapping.pose=track`." in pose
+    rows = {tuple(r[:2]): r[2:] for r in table_rows(pose)}
+    assert rows[("object=patched_toy", "0")] == [
+        "1.00 / 2.00 / 1.50",
+        "1 / 2",
+        "2.00 (4)",
+        "90.0",
+        "50.0 (plastic)",
+        "96.0",
+        "0.900",
+        "0.980",
+    ]
+    mean_row = rows[("object=patched_toy", "**mean**")]
+    assert mean_row[:4] == ["2.00 / 4.00 / 2.50", "2 / 4", "1.50 (3)", "85.0"]
+    assert mean_row[5:] == ["94.0", "0.900", "0.985"]
+    assert rows[("object=patchwork", "0")][5] == "n/a"
+    # Tracked runs are reported here only: not as another setting, not in the object tables.
+    assert "mapping.pose=track" not in section(page, "Other settings")
+    assert [r[0] for r in table_rows(section(page, "Multi-material objects"))] == ["`patched_toy`"]
+
+
+def test_a_pose_ablation_compares_within_its_own_sweep(tmp_path: Path, default_sweep: Path) -> None:
+    sweep = tmp_path / "multirun" / "ablation_pose"
+    for k, pose in enumerate(("gt", "track")):
+        overrides = ["object=patched_toy", "seed=0", f"mapping.pose={pose}", "sensor.duration_s=3"]
+        if pose == "gt":
+            metrics = run_metrics(88.0, 95.0, 50.0, 54.0, "plastic", fscore=0.95)
+            metrics["oracles"] = ["object_pose"]
+        else:
+            metrics = tracked_metrics(80.0, 2.0, 1.0, 2.0)
+        write_job(sweep, str(k), overrides, metrics)
+    page = generate(tmp_path, default_sweep, sweep)
+    pose = section(page, "Pose tracking")
+    assert "Every run here: `mapping.pose=track`, `sensor.duration_s=3`." in pose
+    # The partner is the sweep's own pose=gt run (88.0), not the default run of seed 0 (96.0).
+    row = cells(pose, "object=patched_toy")
+    assert row[1] == "0" and row[7:] == ["88.0", "0.900", "0.950"]
+    assert "No runs with other settings." in page
+
+
+def test_policy_runs_pair_scripted_and_active_per_object_and_seed(
+    tmp_path: Path, default_sweep: Path
+) -> None:
+    sweep = tmp_path / "multirun" / "policy"
+    runs = {
+        ("scripted", 0): (85.0, [40.0, 80.0, 85.0]),
+        ("active", 0): (93.0, [40.0, 80.0, 93.0]),
+        ("scripted", 1): (91.0, [40.0, 90.0, 91.0]),
+        ("active", 1): (95.0, [40.0, 95.0, 95.0]),
+    }
+    for k, ((policy, seed), (value, values)) in enumerate(runs.items()):
+        metrics = run_metrics(value, 95.0, 33.3, 40.0, "metal", oracles=["object_pose"])
+        metrics["matching_mean_class_curve"] = curve(values)
+        overrides = [
+            "object=kitchen_tool",
+            f"seed={seed}",
+            f"sensor.policy={policy}",
+            "viz.plots=False",
+        ]
+        write_job(sweep, str(k), overrides, metrics)
+    page = generate(tmp_path, sweep)
+    active = section(page, "Active touch")
+    assert cells(active, "object=kitchen_tool")[1:] == [
+        "0",
+        "33.3 (metal)",
+        "85.0",
+        "-",  # never reached 90 %
+        "93.0",
+        "1.0 s",
+        "+8.0",
+    ]
+    rows = {tuple(r[:2]): r[2:] for r in table_rows(active)}
+    assert rows[("object=kitchen_tool", "1")][2:5] == ["0.5 s", "95.0", "0.5 s"]
+    assert rows[("object=kitchen_tool", "**mean**")][1:] == [
+        "88.0",
+        "1 of 2 reached",
+        "94.0",
+        "2 of 2 reached",
+        "+6.0",
+    ]
+    assert "Every run here" not in active  # viz.plots is bookkeeping, not a setting
+    assert "No runs with other settings." in page
+
+
+def test_an_active_run_without_a_scripted_partner_takes_the_default_run(
+    tmp_path: Path, default_sweep: Path
+) -> None:
+    sweep = tmp_path / "multirun" / "active_only"
+    metrics = run_metrics(97.0, 95.0, 50.0, 54.0, "plastic", oracles=["object_pose"])
+    metrics["matching_mean_class_curve"] = curve([40.0, 97.0, 97.0])
+    write_job(sweep, "0", ["object=patched_toy", "seed=1", "sensor.policy=active"], metrics)
+    page = generate(tmp_path, default_sweep, sweep)
+    active = section(page, "Active touch")
+    assert "† no scripted run in this source" in active
+    assert cells(active, "object=patched_toy")[3:] == ["92.0†", "0.5 s", "97.0", "0.5 s", "+5.0"]
+
+
+def test_without_tracked_or_policy_runs_the_sections_are_left_out(
+    tmp_path: Path, default_sweep: Path
+) -> None:
+    page = generate(tmp_path, default_sweep)
+    assert "## Pose tracking" not in page and "## Active touch" not in page
+    assert "  - finished 20" in section(page, "Sources")  # when the runs' results were written
