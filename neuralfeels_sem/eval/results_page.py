@@ -15,6 +15,8 @@ The page has these parts:
   the `pose=gt` run of the same object and seed (results_pose.py);
 - active touch: `sensor.policy` runs, scripted against active per object and seed
   (results_policy.py);
+- resume: runs resumed from a checkpoint beside the same runs uninterrupted
+  (results_resume.py);
 - every other setting (ablations, runs with overrides), one table per source;
 - speed, from a `make bench` report (`--bench bench.json`), each figure with its load;
 - per source: the simulator oracles the runs used, the machine and load where recorded,
@@ -36,6 +38,7 @@ from neuralfeels_sem.core.errors import DataError, UserError
 from neuralfeels_sem.eval.results_bench import speed_section
 from neuralfeels_sem.eval.results_policy import is_policy_run, policy_section
 from neuralfeels_sem.eval.results_pose import pose_runs, pose_section
+from neuralfeels_sem.eval.results_resume import resume_pairs, resume_section
 from neuralfeels_sem.eval.results_runs import (
     Run,
     Source,
@@ -162,7 +165,9 @@ def material_sections(runs: Sequence[Run]) -> list[str]:
 
 
 def perception_section(runs: Sequence[Run]) -> list[str]:
-    table = perception_table(runs)
+    # A realtime run perceives only the few frames it maps: its figures would weigh as
+    # much as a whole run's in the mean, so the table keeps to offline runs.
+    table = perception_table([r for r in runs if r.metrics.get("pace") != "realtime"])
     if not table:
         return []
     return [
@@ -172,17 +177,26 @@ def perception_section(runs: Sequence[Run]) -> list[str]:
         'Mean ± std over runs of the per-run figures of `metrics.json["perception"]`:',
         "the segmented camera mask's IoU with the true object mask, camera frames whose",
         "object could not be found (skipped, never fused), and the touches' contact IoU and",
-        "depth error on true contact pixels (see [perception](perception.md)).",
+        "depth error on true contact pixels (see [perception](perception.md)); runs at",
+        "`sensor.pace=offline`, every setting of the object and oracles pooled.",
         "",
         *table,
     ]
 
 
 def own_section_runs(source: Source) -> list[Run]:
-    """Tracked runs (with their `pose=gt` partners) and active-touch runs: they have
-    sections of their own, not a settings table."""
+    """Tracked runs (with their `pose=gt` partners), active-touch runs and resume pairs:
+    they have sections of their own, not the object or settings tables."""
     tracked, partners = pose_runs(source)
-    return tracked + partners + [r for r in source.runs if is_policy_run(r)]
+    resumed = [r for pair in resume_pairs(source) for r in pair]
+    return tracked + partners + resumed + [r for r in source.runs if is_policy_run(r)]
+
+
+def table_runs(sources: Sequence[Source]) -> list[Run]:
+    """The runs of the object, perception and settings tables: all but those of a section
+    of their own."""
+    own = {id(r) for s in sources for r in own_section_runs(s)}
+    return [r for s in sources for r in s.runs if id(r) not in own]
 
 
 def settings_sections(sources: Sequence[Source]) -> list[str]:
@@ -199,9 +213,8 @@ def settings_sections(sources: Sequence[Source]) -> list[str]:
 
 
 def render(sources: Sequence[Source], command: str, bench: Path | None = None) -> str:
-    runs = [r for s in sources for r in s.runs]
+    runs = table_runs(sources)
     defaults = [r for r in runs if not r.setting]
-    own = {id(r) for s in sources for r in own_section_runs(s)}
     lines = [
         "# Results",
         "",
@@ -215,9 +228,10 @@ def render(sources: Sequence[Source], command: str, bench: Path | None = None) -
         *INTRO,
         "",
         *material_sections(runs),
-        *perception_section([r for r in runs if id(r) not in own]),
+        *perception_section(runs),
         *pose_section(sources, defaults),
         *policy_section(sources, defaults),
+        *resume_section(sources),
         *settings_sections(sources),
         *speed_section(bench),
         "",
@@ -242,7 +256,7 @@ def update_readme(path: Path, sources: Sequence[Source]) -> None:
         raise DataError(f"{path}: cannot read ({exc.strerror})") from None
     if text.count(README_BEGIN) != 1 or text.count(README_END) != 1:
         raise DataError(f"{path}: needs one '{README_BEGIN}' line and one '{README_END}' line")
-    runs = [r for s in sources for r in s.runs if not r.setting and not r.single_material]
+    runs = [r for r in table_runs(sources) if not r.setting and not r.single_material]
     if not runs:
         raise DataError("--readme: no default-config multi-material runs among the directories")
     head, rest = text.split(README_BEGIN)

@@ -207,33 +207,65 @@ def setting_label(run: Run, keys: Sequence[str]) -> str:
     return ", ".join(parts)
 
 
+def range_cell(values: Sequence[float], digits: int = 0) -> str:
+    """'low-high' over runs (one value when they agree); n/a when none recorded."""
+    if not values:
+        return "n/a"
+    low, high = fmt(min(values), digits), fmt(max(values), digits)
+    return low if low == high else f"{low}-{high}"
+
+
+def per_seed_cell(runs: Sequence[Run]) -> str:
+    return ", ".join(
+        fmt(get(r.metrics, "matching_mean_class_pct"))
+        for r in by_seed(runs)
+        if get(r.metrics, "matching_mean_class_pct") is not None
+    )
+
+
+# What a run at sensor.pace=realtime gave up, shown where a table holds such a run.
+PACE_COLUMNS = (("frames", "frames mapped", 0), ("frames_dropped", "frames dropped", 0))
+
+
+def pace_cells(runs: Sequence[Run]) -> list[str]:
+    cells = [range_cell(values_of(runs, key), digits) for key, _, digits in PACE_COLUMNS]
+    return cells + [range_cell(values_of(runs, "lag_max_s"), 2)]
+
+
 def settings_table(source: Source, runs: Sequence[Run]) -> list[str]:
     """One row per setting (object and the overrides that vary in this source)."""
     keys = sorted({k for r in runs for k in r.setting})
     varying = [k for k in keys if len({r.setting.get(k) for r in runs}) > 1]
     constant = [k for k in keys if k not in varying]
+    with_pace = any(r.metrics.get("pace") == "realtime" for r in runs)
     rows = []
     for label, members in group_by(runs, lambda r: setting_label(r, varying)).items():
         floor, _ = majority_cells(members)
         row = [
             label,
-            str(len(members)),
+            seeds_text(members),
+            per_seed_cell(members) or "n/a",
             "**" + mean_std(values_of(members, "matching_mean_class_pct")) + "**",
             floor,
             fmt(mean(margins(members)), sign=True),
             matching_cell(members),
             fmt(mean(values_of(members, "fscore_5mm")), 3),
+            range_cell(values_of(members, "wall_s")),
         ]
-        rows.append(row)
+        rows.append(row + (pace_cells(members) if with_pace else []))
     header = [
         "setting",
-        "runs",
+        "seeds",
+        "mean-class % per seed",
         "mean-class % (mean ± std)",
         "majority map % (material)",
         "margin",
         "matching % (majority)",
         "F-score @5 mm",
+        "wall s",
     ]
+    if with_pace:
+        header += [name for _, name, _ in PACE_COLUMNS] + ["lag max s"]
     lines = [f"### `{source.label}`", ""]
     if constant:
         fixed = ", ".join(f"`{k}={runs[0].setting[k]}`" for k in constant)

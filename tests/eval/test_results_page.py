@@ -216,10 +216,20 @@ def test_ablation_sweep_gets_a_settings_table(tmp_path: Path) -> None:
     other = section(page, "Other settings")
     assert "Every run here: `sensor.duration_s=3`." in other
     row = cells(other, "object=patched_toy, mapping.mapper.label_vote_radius=0.01")
-    assert row[1:] == ["2", "**60.5 ± 0.7**", "50.0 (plastic)", "+10.5", "95.0 (54.0)", "0.900"]
-    assert cells(other, "object=patched_toy, mapping.mapper.label_vote_radius=0.02")[2] == (
+    assert row[1:] == [
+        "0-1",
+        "60.0, 61.0",
+        "**60.5 ± 0.7**",
+        "50.0 (plastic)",
+        "+10.5",
+        "95.0 (54.0)",
+        "0.900",
+        "70",  # wall time per run, s
+    ]
+    assert cells(other, "object=patched_toy, mapping.mapper.label_vote_radius=0.02")[3] == (
         "**90.5 ± 0.7**"
     )
+    assert "frames dropped" not in other  # only where a run streamed at sensor.pace=realtime
     # Runs with settings never reach the object tables.
     assert "No default-config multi-material runs." in page
 

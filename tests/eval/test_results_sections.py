@@ -169,3 +169,44 @@ def test_without_tracked_or_policy_runs_the_sections_are_left_out(
     page = generate(tmp_path, default_sweep)
     assert "## Pose tracking" not in page and "## Active touch" not in page
     assert "  - finished 20" in section(page, "Sources")  # when the runs' results were written
+
+
+def test_realtime_runs_show_what_the_pace_gave_up(tmp_path: Path) -> None:
+    sweep = tmp_path / "multirun" / "pace"
+    for k, (pace, frames, lag) in enumerate((("offline", 100, None), ("realtime", 2, 1.5))):
+        metrics = run_metrics(80.0 if frames == 100 else 50.0, 95.0, 50.0, 54.0, "plastic")
+        metrics.update(pace=pace, frames=frames, frames_dropped=100 - frames, lag_max_s=lag)
+        metrics["perception"] = {"camera_mask": "segment", "camera_mask_iou": 0.5 + 0.4 * k}
+        write_job(sweep, str(k), ["object=patched_toy", "seed=0", f"sensor.pace={pace}"], metrics)
+    page = generate(tmp_path, sweep)
+    other = section(page, "Other settings")
+    assert cells(other, "object=patched_toy, sensor.pace=realtime")[-3:] == ["2", "98", "1.50"]
+    assert cells(other, "object=patched_toy, sensor.pace=offline")[-3:] == ["100", "0", "n/a"]
+    # The realtime run's few perceived frames stay out of the perception table.
+    assert (
+        cells(section(page, "Perception against the simulator's ground truth"), "`patched_toy`")[3]
+        == "0.500 ± 0.000"
+    )
+
+
+def test_a_resumed_run_is_shown_beside_the_same_run_uninterrupted(tmp_path: Path) -> None:
+    sweep = tmp_path / "multirun" / "resume"
+    for name, value, segments in (
+        ("whole", 87.62, [(0, 99)]),
+        ("resumed", 87.56, [(0, 50), (51, 99)]),
+    ):
+        metrics = run_metrics(value, 97.5, 50.0, 96.3, "fabric", oracles=["object_pose"])
+        metrics["segments"] = [{"first_frame": a, "last_frame": b} for a, b in segments]
+        write_job(sweep, name, ["object=plushie", "seed=0", "viz.plots=false"], metrics)
+    (sweep / "resumed" / "checkpoint.pt").write_bytes(b"0" * 2_500_000)
+    page = generate(tmp_path, sweep)
+    assert cells(section(page, "Resume"), "object=plushie")[1:] == [
+        "0",
+        "50",
+        "87.62 / 87.56 (-0.06)",
+        "97.50 / 97.50 (+0.00)",
+        "50.0 / 96.3",
+        "2.5",
+    ]
+    # The pair is not counted again among the default-config runs.
+    assert "No default-config multi-material runs." in page
