@@ -72,7 +72,7 @@ class MapperConfig:
     # for the material loss, nor one backed by fewer than min_support touches with its label
     # within support_radius (null: radius). Touches are counted as presses: a finger's
     # touches at most press_gap frames apart are one (0: every frame). radius 0 = off.
-    label_vote_radius: float = 0.02
+    label_vote_radius: float = 0.01
     label_vote_min_neighbours: int = 3
     label_vote_min_agreement: float = 0.25
     label_vote_min_support: int = 1
