@@ -17,13 +17,46 @@ from neuralfeels_sem.core.errors import DataError
 # (benchmark, dotted key inside its result, what it measures, unit)
 FIGURES: tuple[tuple[str, str, str, str], ...] = (
     ("sim", "full_frames_per_s", "simulated rig, 4 DIGITs + RGB-D", "frames/s"),
+    ("sim", "sim_steps_per_s", "MuJoCo steps", "steps/s"),
+    ("sim", "rig_updates_per_s", "rig updates (policy + IK + press control)", "updates/s"),
+    ("sim", "tactile_frames_per_s", "DIGIT renders", "img/s"),
+    ("sim", "tactile_4_fingers_per_s", "four-finger DIGIT sets", "sets/s"),
+    ("sim", "camera_frames_per_s", "camera renders", "frames/s"),
+    ("sim", "mean_fingers_touching", "fingers touching on average", "fingers"),
+    ("render", "tactile_ms_in_contact", "DIGIT render in contact", "ms"),
+    ("render", "tactile_ms_no_contact", "DIGIT render, no contact", "ms"),
+    ("render", "tactile_ms_lifted_2cm", "DIGIT render, lifted 2 cm (no GL pass)", "ms"),
+    ("render", "camera_ms", "camera render", "ms"),
+    ("segmentation", "plushie.mask_iou_mean", "camera segmentation IoU (plushie, mean)", ""),
+    ("segmentation", "plushie.mask_iou_min", "camera segmentation IoU (plushie, worst)", ""),
+    ("segmentation", "patched_toy.mask_iou_mean", "camera segmentation IoU (patched_toy)", ""),
+    (
+        "segmentation",
+        "patched_toy.mask_iou_min",
+        "camera segmentation IoU (patched_toy, worst)",
+        "",
+    ),
     ("segmentation", "plushie.segmentation_ms", "camera segmentation (plushie)", "ms/frame"),
+    ("segmentation", "camera_frames_per_s.bare", "camera, object and hand only", "frames/s"),
+    ("segmentation", "camera_frames_per_s.lab_scenery", "camera with the lab scenery", "frames/s"),
+    (
+        "segmentation",
+        "camera_frames_per_s.lab_scenery_realsense",
+        "camera with scenery and RealSense noise",
+        "frames/s",
+    ),
     ("tactile_depth", "images_per_s_cpu_1thread", "tactile depth net, batch 4, 1 thread", "img/s"),
     ("tactile_depth", "images_per_s_cpu_2thread", "tactile depth net, batch 4, 2 threads", "img/s"),
     (
         "classifier",
         "images_per_s_shipped_112px_cpu",
         "classifier, shipped 112 px, batch 4",
+        "img/s",
+    ),
+    (
+        "classifier",
+        "images_per_s_shipped_112px_cpu_1thread",
+        "classifier, shipped 112 px, batch 4, 1 thread",
         "img/s",
     ),
     ("classifier", "images_per_s_224px_cpu", "classifier, paper's 224 px, batch 4", "img/s"),
@@ -34,18 +67,51 @@ FIGURES: tuple[tuple[str, str, str, str], ...] = (
         "field step, 4096 points, 2^19",
         "steps/s",
     ),
+    (
+        "field",
+        "cpu_cpu_default_log2_19_dense.steps_per_s",
+        "field step, 4096 points, 2^19, dense Adam",
+        "steps/s",
+    ),
     ("field", "cpu_paper_log2_24_sparse.steps_per_s", "field step, 4096 points, 2^24", "steps/s"),
+    (
+        "field",
+        "cpu_paper_log2_24_dense.steps_per_s",
+        "field step, 4096 points, 2^24, dense Adam",
+        "steps/s",
+    ),
+    (
+        "field",
+        "cpu_paper_log2_24_sparse.peak_rss_delta_mb_with_query",
+        "peak memory added, 2^24 step and SDF query",
+        "MB",
+    ),
     ("mapper", "steps_per_s", "mapper step (default config)", "steps/s"),
     ("mapper", "steps_per_s_by_threads.1.steps_per_s", "mapper step, 1 thread", "steps/s"),
+    ("mapper", "steps_per_s_by_threads.2.steps_per_s", "mapper step, 2 threads", "steps/s"),
+    ("mapper", "steps_per_s_by_threads.1.step_cpu_ms", "mapper step CPU, 1 thread", "ms"),
+    ("mapper", "steps_per_s_by_threads.2.step_cpu_ms", "mapper step CPU, 2 threads", "ms"),
     ("mapper", "default_run.realtime_factor", "default run (3 s): sensor time / loop time", "x"),
     ("mapper", "frame_points_ms", "mapper frame points (perception)", "ms/frame"),
     ("mapper", "add_frame_per_s", "mapper frames (points + steps)", "frames/s"),
     ("pose", "known_shape.ms_per_frame", "pose tracking against the true shape", "ms/frame"),
     ("pose", "field.ms_per_frame", "pose tracking against the field", "ms/frame"),
+    ("pose", "grid_96_build_s", "true-shape SDF grid (96^3) build", "s"),
     ("checkpoint", "size_mb", "checkpoint of the default config", "MB"),
+    ("checkpoint", "exact_size_mb", "checkpoint, exact storage", "MB"),
+    ("checkpoint", "unpacked_size_mb", "checkpoint state stored whole", "MB"),
+    ("checkpoint", "updated_row_fraction", "share of table rows updated", ""),
     ("checkpoint", "save_s", "checkpoint save", "s"),
+    ("checkpoint", "load_s", "checkpoint load", "s"),
     ("recording", "write_fps", "recording written", "frames/s"),
     ("recording", "read_fps", "recording replayed", "frames/s"),
+    ("recording", "feelsight_export_fps", "recording exported to FeelSight", "frames/s"),
+    ("recording", "disk_mb_per_frame", "recording on disk", "MB/frame"),
+    ("objects", "plushie_generate_s", "object generation (plushie, no cache)", "s"),
+    ("objects", "disk_cache_load_s", "object from the disk cache", "s"),
+    ("objects", "custom_example_load_s", "custom mesh, shipped example", "s"),
+    ("objects", "custom_ycb_load_s", "custom mesh, YCB scan", "s"),
+    ("objects", "labels_at_points_per_s", "material labels at points", "points/s"),
     ("eval", "shape_metrics_s", "F-score + Chamfer, 20,000 samples", "s"),
 )
 LOAD_KEYS = ("load_average_1min", "load_avg_1min", "load_average_1min_1thread")
@@ -88,7 +154,8 @@ def bench_lines(report: dict, source: str) -> list[str]:
         result = results.get(bench)
         value = lookup(result, key) if isinstance(result, dict) else None
         if value is not None:
-            rows.append(f"| {what} | {value:g} {unit} | {bench_load(result)} | `{bench}.{key}` |")
+            figure = f"{value:g} {unit}".strip()
+            rows.append(f"| {what} | {figure} | {bench_load(result)} | `{bench}.{key}` |")
     machine = report.get("machine", {})
     where = ", ".join(
         f"{k} {machine[k]}" for k in ("cpu_count", "cuda_device") if machine.get(k) is not None
@@ -109,4 +176,9 @@ def bench_lines(report: dict, source: str) -> list[str]:
 def speed_section(bench: Path | None) -> Sequence[str]:
     if bench is None:
         return []
-    return ["", "## Speed", "", *bench_lines(load_bench(bench), bench.as_posix())]
+    intro = [
+        "Speed, and the other figures the benchmarks measure on the way (segmentation IoU,",
+        "checkpoint and recording sizes).",
+        "",
+    ]
+    return ["", "## Speed", "", *intro, *bench_lines(load_bench(bench), bench.as_posix())]

@@ -11,6 +11,7 @@ The page has these parts:
   matching, F-score, classifier accuracy on judged touches and coverage;
 - single-material objects (the majority map already scores 100 %): classifier accuracy on
   judged touches, coverage, accuracy over all touches, F-score;
+- uncertainty of the material map: entropy against the map's errors (results_uncertainty.py);
 - pose tracking: runs with `mapping.pose` other than `gt`, per run and per object, beside
   the `pose=gt` run of the same object and seed (results_pose.py);
 - active touch: `sensor.policy` runs, scripted against active per object and seed
@@ -18,6 +19,8 @@ The page has these parts:
 - resume: runs resumed from a checkpoint beside the same runs uninterrupted
   (results_resume.py);
 - every other setting (ablations, runs with overrides), one table per source;
+- shipped checkpoints: the held-out figures in the reports beside the shipped networks
+  (results_assets.py);
 - speed, from a `make bench` report (`--bench bench.json`), each figure with its load;
 - per source: the simulator oracles the runs used, the machine and load where recorded,
   and when the runs finished.
@@ -35,6 +38,7 @@ from datetime import UTC, datetime
 from pathlib import Path
 
 from neuralfeels_sem.core.errors import DataError, UserError
+from neuralfeels_sem.eval.results_assets import assets_section
 from neuralfeels_sem.eval.results_bench import speed_section
 from neuralfeels_sem.eval.results_policy import is_policy_run, policy_section
 from neuralfeels_sem.eval.results_pose import pose_runs, pose_section
@@ -54,6 +58,7 @@ from neuralfeels_sem.eval.results_tables import (
     single_material_table,
     values_of,
 )
+from neuralfeels_sem.eval.results_uncertainty import uncertainty_section
 
 COMMAND = "python -m neuralfeels_sem.eval.results_page"
 
@@ -229,10 +234,12 @@ def render(sources: Sequence[Source], command: str, bench: Path | None = None) -
         "",
         *material_sections(runs),
         *perception_section(runs),
+        *uncertainty_section(sources, runs),
         *pose_section(sources, defaults),
         *policy_section(sources, defaults),
         *resume_section(sources),
         *settings_sections(sources),
+        *assets_section(),
         *speed_section(bench),
         "",
         "## Sources",

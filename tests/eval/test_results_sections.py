@@ -2,6 +2,7 @@
 
 from __future__ import annotations
 
+import json
 from pathlib import Path
 
 import pytest
@@ -210,3 +211,50 @@ def test_a_resumed_run_is_shown_beside_the_same_run_uninterrupted(tmp_path: Path
     ]
     # The pair is not counted again among the default-config runs.
     assert "No default-config multi-material runs." in page
+
+
+def test_shipped_checkpoints_come_from_their_reports(tmp_path: Path) -> None:
+    from neuralfeels_sem.eval.results_assets import assets_section
+
+    depth = tmp_path / "depth.json"
+    held_out = {"overall": {"contact_iou": 0.95, "depth_mae_mm": 0.2}}
+    held_out["per_finger"] = {"thumb": {"contact_iou": 0.9, "depth_mae_mm": 0.25}}
+    depth.write_text(json.dumps({"held_out": held_out, "held_out_samples": 40, "train_wall_s": 60}))
+    classifier = tmp_path / "classifier.json"
+    report = {"test_accuracy": 0.975, "test_count": 80, "per_sensor": {"index": 0.95}}
+    report["per_press_kind"] = {"edge": {"accuracy": 0.5, "count": 4}}
+    classifier.write_text(json.dumps(report))
+    text = "\n".join(assets_section(depth, classifier))
+    assert cells(text, "**overall**")[1:] == ["0.950", "0.200"]
+    assert cells(text, "thumb")[1:] == ["0.900", "0.250"]
+    assert cells(text, "**test split**")[1] == "97.5 (80)"
+    assert cells(text, "sensor `index`")[1] == "95.0"
+    assert cells(text, "press `edge`")[1] == "50.0 (4)"
+    assert cells(text, "validation split")[1] == "n/a"  # absent from the report: not filled in
+    assert assets_section(tmp_path / "none.json", tmp_path / "none.json") == []
+
+
+def test_uncertainty_rows_per_source_and_object(tmp_path: Path, default_sweep: Path) -> None:
+    for k, auroc in enumerate((0.9, 0.7)):
+        path = default_sweep / str(k) / "metrics.json"
+        metrics = json.loads(path.read_text())
+        metrics["uncertainty"] = {
+            "auroc": auroc,
+            "ece": 0.05,
+            "error_share": 0.1 * (k + 1),
+            "mean_entropy_correct": 0.1,
+            "mean_entropy_wrong": 0.4,
+        }
+        path.write_text(json.dumps(metrics))
+    page = generate(tmp_path, default_sweep)
+    row = cells(section(page, "Uncertainty of the material map"), f"`{default_sweep}`")
+    assert row[1:] == [
+        "`patched_toy`",
+        "2",
+        "94.0 ± 2.8",
+        "50.0 (plastic)",
+        "15.0 ± 7.1",
+        "0.80 ± 0.14",
+        "0.050 ± 0.000",
+        "0.10 ± 0.00 / 0.40 ± 0.00",
+    ]
