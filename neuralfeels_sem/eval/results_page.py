@@ -275,8 +275,14 @@ def update_readme(path: Path, sources: Sequence[Source]) -> None:
         raise DataError(f"{path}: cannot write ({exc.strerror})") from None
 
 
-def build_command(out: Path | None, dirs: Sequence[str], bench: Path | None = None) -> str:
+def build_command(
+    out: Path | None,
+    dirs: Sequence[str],
+    bench: Path | None = None,
+    readme: Path | None = None,
+) -> str:
     parts = [COMMAND] + ([f"--out {display_path(out)}"] if out is not None else [])
+    parts += [f"--readme {display_path(readme)}"] if readme is not None else []
     parts += [f"--bench {display_path(bench)}"] if bench is not None else []
     return " ".join(parts + [display_path(Path(d)) for d in dirs])
 
@@ -296,7 +302,8 @@ def main(argv: Sequence[str] | None = None) -> int:
     args = parser.parse_args(argv)
     try:
         sources = [load_source(Path(d)) for d in args.dirs]
-        page = render(sources, build_command(args.out, args.dirs, args.bench), args.bench)
+        command = build_command(args.out, args.dirs, args.bench, args.readme)
+        page = render(sources, command, args.bench)
         if args.out is None:
             sys.stdout.write(page)
         else:
