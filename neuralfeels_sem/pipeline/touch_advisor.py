@@ -2,7 +2,8 @@
 
 After every mapped frame it samples the map's surface (points of a sphere around the
 field's centre, moved onto the SDF's zero level by Newton steps), takes the material
-branch's normalised entropy there, keeps the labelled touches so far, and packs them into
+branch's normalised entropy there, keeps the touches so far (the presses with a label, or
+every press: `novelty_from`), and packs them into
 a TouchAdvice (sim/touch_planner.py) that scores object-frame points by uncertainty and
 novelty. With sensor.policy=active the simulated sensor is handed the advice and presses
 where it scores highest; on any other rig (sensor=real, replay) the best `top_k` surface
@@ -16,6 +17,7 @@ import json
 import logging
 from dataclasses import dataclass, field
 from pathlib import Path
+from typing import Literal, get_args
 
 import numpy as np
 import torch
@@ -33,6 +35,8 @@ SUGGESTIONS_FILE = "touch_suggestions.json"
 PROJECTION_STEPS = 4  # Newton steps onto the zero level (a trained SDF needs two)
 ON_SURFACE_M = 0.003  # samples whose |sdf| stays above this after the steps are dropped
 START_RADIUS = 0.6  # of the field's half-extent: the sphere the samples start on
+NoveltySource = Literal["labelled", "pressed"]  # mapping.advisor.novelty_from
+NOVELTY_SOURCES = get_args(NoveltySource)
 
 
 @dataclass
@@ -42,12 +46,21 @@ class TouchAdvisorConfig:
     surface_points: int = 1024  # surface samples scored per refresh
     every_frames: int = 1  # refresh the surface samples every this many mapped frames
     top_k: int = 8  # suggestions written to touch_suggestions.json
+    # Which touches make a place less novel: `labelled` (a label that trains the map) or
+    # `pressed` (any contact, abstentions too: a press the classifier could not read is
+    # likely read no better the next time at the same place). A NoveltySource; typed `str`
+    # because OmegaConf 2.3 rejects Literal annotations.
+    novelty_from: str = "labelled"
     score: TouchScoreConfig = field(default_factory=TouchScoreConfig)
 
     def __post_init__(self) -> None:
         if not 16 <= self.surface_points <= 100_000:
             raise ValueError(
                 f"mapping.advisor.surface_points={self.surface_points} must be in [16, 100000]"
+            )
+        if self.novelty_from not in NOVELTY_SOURCES:
+            raise ValueError(
+                f"mapping.advisor.novelty_from={self.novelty_from!r} must be labelled or pressed"
             )
         if self.every_frames < 1 or self.top_k < 1:
             raise ValueError(
@@ -99,7 +112,7 @@ class TouchAdvisor:
     def __init__(self, config: TouchAdvisorConfig, sensor, out: Path) -> None:
         self.config, self.sensor, self.out = config, sensor, Path(out)
         self.directions = sphere_directions(config.surface_points)
-        self.touched: list[np.ndarray] = []  # labelled touches, field frame
+        self.touched: list[np.ndarray] = []  # touches counted for novelty, field frame
         self.surface = np.zeros((0, 3))
         self.entropy = np.zeros(0)
         self.advice: TouchAdvice | None = None
@@ -110,8 +123,8 @@ class TouchAdvisor:
         object_T_world = invert_pose(world_T_object)
         for finger, label in labels.items():
             reading = frame.tactile.get(finger)
-            if reading is None or not getattr(label, "usable", False):
-                continue  # only touches that teach the material branch count as pressed
+            if reading is None or not self._counts(label):
+                continue
             gel = reading.world_T_sensor @ np.array([0.0, 0.0, GEL_DISTANCE_M, 1.0])
             self.touched.append((object_T_world @ gel)[:3])
         if self.mapped % self.config.every_frames == 0:
@@ -132,6 +145,12 @@ class TouchAdvisor:
         if getattr(self.sensor, "accepts_advice", False):
             self.sensor.advise(frame.index, self.advice)
 
+    def _counts(self, label) -> bool:
+        """Whether this touch makes its place less novel (`novelty_from`)."""
+        if self.config.novelty_from == "pressed":
+            return bool(getattr(label, "contact", False))
+        return bool(getattr(label, "usable", False))
+
     def on_scores(self, frame_index: int, scores: dict | None, mapper) -> None:
         self.write()
 
@@ -151,6 +170,7 @@ class TouchAdvisor:
         )
         points, scores = advice.suggestions(self.config.top_k)
         report = suggestions_report(advice, points, scores, self.world_T_field)
+        report["novelty_from"] = self.config.novelty_from
         plan = getattr(self.sensor, "touch_plan", None)
         report["touch_plan"] = plan() if callable(plan) else None
         atomic_write_text(self.out / SUGGESTIONS_FILE, json.dumps(report, indent=1))
@@ -170,7 +190,7 @@ def suggestions_report(
     return {
         "after_frame": advice.frame_index,
         "frame": "object (the map's frame); world at the latest mapped pose",
-        "labelled_touches": len(advice.touched),
+        "touches_counted": len(advice.touched),
         "surface_samples": len(advice.surface),
         "suggestions": [
             {

@@ -1,7 +1,7 @@
 """touch_suggestions.png: the map's surface samples coloured by touch score, the suggestions on top.
 
 Three orthographic views of the object frame (x-y, x-z, y-z): samples coloured by score
-(0-1, one scale), labelled touches as black dots, the suggested points as numbered stars
+(0-1, one scale), the touches counted for novelty as black dots, the suggested points as numbered stars
 (1 = touch first), the order of touch_suggestions.json.
 """
 
@@ -46,6 +46,6 @@ def draw_suggestions(advice, points: np.ndarray, path: Path | str, dpi: int = 10
         fig.colorbar(shown, ax=axes, label="touch score (uncertainty + novelty)", shrink=0.8)
     fig.suptitle(
         f"where to touch next after frame {advice.frame_index}: "
-        f"{len(points)} suggestions, {len(advice.touched)} labelled touches (black)"
+        f"{len(points)} suggestions, {len(advice.touched)} touches (black)"
     )
     return _save(fig, Path(path), dpi)

@@ -5,6 +5,7 @@ from __future__ import annotations
 import json
 
 import numpy as np
+import pytest
 import torch
 
 from neuralfeels_sem.core.digit import DIGIT_INTRINSICS, GEL_DISTANCE_M
@@ -90,7 +91,8 @@ def test_advice_reaches_the_sensor_and_suggestions_point_at_the_uncertain_half(t
     advisor.on_scores(2, None, Mapper())
     advisor.close()
     report = json.loads((tmp_path / SUGGESTIONS_FILE).read_text())
-    assert report["after_frame"] == 2 and report["labelled_touches"] == 3
+    assert report["after_frame"] == 2 and report["touches_counted"] == 3
+    assert report["novelty_from"] == "labelled"
     assert len(report["suggestions"]) == 4
     scores = [s["score"] for s in report["suggestions"]]
     assert scores == sorted(scores, reverse=True)
@@ -103,7 +105,24 @@ def test_advice_reaches_the_sensor_and_suggestions_point_at_the_uncertain_half(t
 def test_a_touch_without_a_usable_label_is_not_counted(tmp_path) -> None:
     advisor = TouchAdvisor(TouchAdvisorConfig(surface_points=64), AdvisedSensor(), tmp_path)
     advisor.on_frame(_frame(0), {"index": TouchLabel("index", False)}, np.eye(4), Mapper())
+    abstained = TouchLabel("index", True, 2, 0.4, low_confidence=True)
+    advisor.on_frame(_frame(1), {"index": abstained}, np.eye(4), Mapper())
     assert advisor.touched == []
+
+
+def test_novelty_from_pressed_counts_an_abstained_press_but_not_a_miss(tmp_path) -> None:
+    config = TouchAdvisorConfig(surface_points=64, novelty_from="pressed")
+    advisor = TouchAdvisor(config, AdvisedSensor(), tmp_path)
+    advisor.on_frame(_frame(0), {"index": TouchLabel("index", False)}, np.eye(4), Mapper())
+    abstained = TouchLabel("index", True, 2, 0.4, low_confidence=True)
+    advisor.on_frame(_frame(1), {"index": abstained}, np.eye(4), Mapper())
+    np.testing.assert_allclose(advisor.touched, [[0.0, 0.0, RADIUS]], atol=1e-12)
+    assert advisor.advice.touch_distance(np.array([[0.0, 0.0, RADIUS]]))[0] < 1e-9
+
+
+def test_an_unknown_novelty_source_is_refused() -> None:
+    with pytest.raises(ValueError, match="mapping.advisor.novelty_from"):
+        TouchAdvisorConfig(novelty_from="seen")
 
 
 def test_only_an_advised_or_unsimulated_sensor_gets_an_advisor(tmp_path) -> None:
