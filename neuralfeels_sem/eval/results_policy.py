@@ -11,6 +11,7 @@ dagger.
 
 from __future__ import annotations
 
+import json
 from collections.abc import Sequence
 
 from neuralfeels_sem.eval.results_runs import Run, Source, get, reference_run
@@ -27,6 +28,7 @@ from neuralfeels_sem.eval.results_tables import (
 POLICY_KEY = "sensor.policy"
 TARGET_PCT = 90.0  # mean-class matching whose first crossing times the policies
 STAND_IN = "†"
+SUGGESTIONS = "touch_suggestions.json"
 
 
 def is_policy_run(run: Run) -> bool:
@@ -50,6 +52,18 @@ def policy_cells(run: Run | None, mark: str = "") -> list[str]:
     final = fmt(get(run.metrics, "matching_mean_class_pct")) + mark
     t90 = time_to_target(run)
     return [final, "-" if t90 is None else f"{t90:.1f} s"]
+
+
+def regrasps(run: Run | None) -> int | None:
+    """Regrasps the active run made (`touch_plan.regrasps` of its touch_suggestions.json)."""
+    if run is None:
+        return None
+    try:
+        plan = json.loads((run.path / SUGGESTIONS).read_text()).get("touch_plan", {})
+    except (OSError, ValueError, AttributeError):
+        return None
+    found = plan.get("regrasps") if isinstance(plan, dict) else None
+    return len(found) if isinstance(found, list) else None
 
 
 def pairs(runs: Sequence[Run], defaults: Sequence[Run], varying: Sequence[str]) -> list[tuple]:
@@ -91,7 +105,13 @@ def mean_row(label: str, rows: Sequence[tuple]) -> list[str]:
         fmt(mean(values_of(active, "matching_mean_class_pct"))),
         f"{reached[1]} of {len(both)} reached",
         fmt(mean([g for s, a in both if (g := gain(s, a)) is not None]), sign=True),
+        count_cell([regrasps(a) for _, a in both]),
     ]
+
+
+def count_cell(counts: Sequence[int | None]) -> str:
+    known = [c for c in counts if c is not None]
+    return str(sum(known)) if known else "n/a"
 
 
 HEADER = [
@@ -103,6 +123,7 @@ HEADER = [
     "active: mean-class %",
     f"active: time to {TARGET_PCT:.0f} %",
     "active - scripted",
+    "active: regrasps",
 ]
 
 
@@ -119,7 +140,7 @@ def policy_table(source: Source, runs: Sequence[Run], defaults: Sequence[Run]) -
                 [label, str(seed), floor]
                 + policy_cells(scripted, STAND_IN if stand_in else "")
                 + policy_cells(active)
-                + [fmt(gain(scripted, active), sign=True)]
+                + [fmt(gain(scripted, active), sign=True), count_cell([regrasps(active)])]
             )
         if len(members) > 1:
             rows.append(mean_row(label, members))
@@ -142,7 +163,9 @@ INTRO = [
     "[simulation](simulation.md#active-touch-sensorpolicyactive)). Per object and seed:",
     "the final mean-class matching of each policy beside the majority map, and the sensor",
     f"time at which its mean-class curve first reached {TARGET_PCT:.0f} % (- where it never did",
-    "in the run). The mean rows pool the seeds where both policies ran.",
+    "in the run), and the regrasps the active run made (`touch_plan.regrasps` in its",
+    "`touch_suggestions.json`; n/a where the file is absent). The mean rows pool the seeds",
+    "where both policies ran.",
 ]
 
 

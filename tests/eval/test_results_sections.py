@@ -127,6 +127,8 @@ def test_policy_runs_pair_scripted_and_active_per_object_and_seed(
             "viz.plots=False",
         ]
         write_job(sweep, str(k), overrides, metrics)
+    plan = {"touch_plan": {"regrasps": [{"time_s": 3.0, "axis": [1, 0, 0]}]}}
+    (sweep / "1" / "touch_suggestions.json").write_text(json.dumps(plan))  # active, seed 0
     page = generate(tmp_path, sweep)
     active = section(page, "Active touch")
     assert cells(active, "object=kitchen_tool")[1:] == [
@@ -137,6 +139,7 @@ def test_policy_runs_pair_scripted_and_active_per_object_and_seed(
         "93.0",
         "1.0 s",
         "+8.0",
+        "1",  # regrasps of the active run
     ]
     rows = {tuple(r[:2]): r[2:] for r in table_rows(active)}
     assert rows[("object=kitchen_tool", "1")][2:5] == ["0.5 s", "95.0", "0.5 s"]
@@ -146,6 +149,7 @@ def test_policy_runs_pair_scripted_and_active_per_object_and_seed(
         "94.0",
         "2 of 2 reached",
         "+6.0",
+        "1",  # seed 1's active run wrote no touch_suggestions.json: counted as unknown
     ]
     assert "Every run here" not in active  # viz.plots is bookkeeping, not a setting
     assert "No runs with other settings." in page
@@ -161,7 +165,14 @@ def test_an_active_run_without_a_scripted_partner_takes_the_default_run(
     page = generate(tmp_path, default_sweep, sweep)
     active = section(page, "Active touch")
     assert "† no scripted run in this source" in active
-    assert cells(active, "object=patched_toy")[3:] == ["92.0†", "0.5 s", "97.0", "0.5 s", "+5.0"]
+    assert cells(active, "object=patched_toy")[3:] == [
+        "92.0†",
+        "0.5 s",
+        "97.0",
+        "0.5 s",
+        "+5.0",
+        "n/a",
+    ]
 
 
 def test_without_tracked_or_policy_runs_the_sections_are_left_out(
