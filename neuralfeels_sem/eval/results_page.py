@@ -85,9 +85,31 @@ def machine_text(runs: Sequence[Run]) -> str:
     return "; ".join(parts) if parts else "not recorded"
 
 
+def code_text(runs: Sequence[Run]) -> str:
+    """The commits the runs ran (metrics.json `code`), local changes counted."""
+    commits: dict[str, int] = {}
+    dirty = unknown = 0
+    for run in runs:
+        code = run.metrics.get("code") or {}
+        if not code.get("commit"):
+            unknown += 1
+            continue
+        commits[code["commit"][:10]] = commits.get(code["commit"][:10], 0) + 1
+        dirty += bool(code.get("dirty"))
+    if not commits:
+        return "code version not recorded"
+    text = "commit " + ", ".join(
+        f"{c}" if len(commits) == 1 else f"{c} ({plural(n, 'run')})" for c, n in commits.items()
+    )
+    if dirty:
+        text += f"; {plural(dirty, 'run')} with local changes"
+    if unknown:
+        text += f"; {plural(unknown, 'run')} without a recorded version"
+    return text
+
+
 def written_text(runs: Sequence[Run]) -> str:
-    """When the runs finished: the UTC range of their metrics.json modification times
-    (the runs do not record the code version, so the date is what places them)."""
+    """When the runs finished: the UTC range of their metrics.json modification times."""
     stamps = []
     for run in runs:
         try:
@@ -137,7 +159,7 @@ def source_lines(source: Source) -> list[str]:
     if wall:
         low, high = f"{min(wall):.0f}", f"{max(wall):.0f}"
         machine += f"; wall time per run {low if low == high else f'{low}-{high}'} s"
-    return lines + [machine, f"  - {written_text(source.runs)}"]
+    return lines + [machine, f"  - {code_text(source.runs)}; {written_text(source.runs)}"]
 
 
 # ---------------------------------------------------------------------------- page

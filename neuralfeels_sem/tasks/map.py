@@ -45,6 +45,7 @@ from neuralfeels_sem.tasks.build import (
 )
 from neuralfeels_sem.tasks.run_guard import run_provenance
 from neuralfeels_sem.tasks.runner import output_dir
+from neuralfeels_sem.utils.code_version import code_version
 from neuralfeels_sem.utils.device import resolve_device
 from neuralfeels_sem.viz.live import build_live_view
 from neuralfeels_sem.viz.run_report import print_summary, write_pictures
@@ -143,6 +144,7 @@ def run_metrics(cfg: DictConfig, obj, sensor, session: MappingSession, device) -
         # what the run's figures rest on: the scorer's notes, then frames not tracked
         "notes": [*scores.get("notes", []), *pose_source.notes()],
         "machine": machine_info(device),
+        "code": code_version(),  # the commit the figures come from
         "load_avg": load_avg(),  # 1, 5, 15 min at the end
         "trained_on": mapper.trained_on,
         # offline: every frame mapped; realtime: frames_dropped and lag_* say what was not

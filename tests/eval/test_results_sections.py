@@ -180,7 +180,21 @@ def test_without_tracked_or_policy_runs_the_sections_are_left_out(
 ) -> None:
     page = generate(tmp_path, default_sweep)
     assert "## Pose tracking" not in page and "## Active touch" not in page
-    assert "  - finished 20" in section(page, "Sources")  # when the runs' results were written
+    sources = section(page, "Sources")
+    assert "code version not recorded; finished 20" in sources  # when the results were written
+
+
+def test_the_sources_name_the_commits_the_runs_ran(tmp_path: Path) -> None:
+    sweep = tmp_path / "multirun" / "versions"
+    for k, (commit, dirty) in enumerate((("a" * 40, False), ("a" * 40, True), (None, None))):
+        metrics = run_metrics(80.0, 95.0, 50.0, 54.0, "plastic")
+        metrics["code"] = {"commit": commit, "dirty": dirty}
+        write_job(sweep, str(k), ["object=patched_toy", f"seed={k}"], metrics)
+    sources = section(generate(tmp_path, sweep), "Sources")
+    assert (
+        "  - commit aaaaaaaaaa; 1 run with local changes; 1 run without a recorded version;"
+        in sources
+    )
 
 
 def test_realtime_runs_show_what_the_pace_gave_up(tmp_path: Path) -> None:

@@ -93,6 +93,8 @@ def test_map_writes_the_run_output_contract(tiny_run: Path) -> None:
     # A timing is only worth quoting with the machine and its load.
     assert metrics["machine"]["cpus"] >= 1 and metrics["machine"]["torch_threads"] >= 1
     assert metrics["machine"]["device"] == "cpu" and len(metrics["load_avg"]) == 3
+    commit = metrics["code"]["commit"]  # null only outside a git checkout
+    assert commit is None or (len(commit) == 40 and isinstance(metrics["code"]["dirty"], bool))
     # Even a toy run beats the untrained field it is read against.
     assert metrics["matching_pct"] > metrics["baseline"]["matching_pct"] + 20
     assert metrics["fscore_5mm"] > metrics["baseline"]["fscore_5mm"]

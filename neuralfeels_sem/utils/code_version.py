@@ -1,0 +1,36 @@
+"""The code a run ran: the git commit of the checkout and whether it had local changes.
+
+Recorded in metrics.json (`code`) so the results page can say which commit its figures
+come from. A copy outside git (an installed wheel, a tarball) records nulls.
+"""
+
+from __future__ import annotations
+
+import subprocess
+from pathlib import Path
+
+PACKAGE_DIR = Path(__file__).resolve().parents[1]
+GIT_TIMEOUT_S = 5.0
+
+
+def _git(*args: str) -> str | None:
+    """`git -C <package dir> ARGS` stdout, or None when git or the checkout is missing."""
+    try:
+        result = subprocess.run(
+            ["git", "-C", str(PACKAGE_DIR), *args],
+            capture_output=True,
+            text=True,
+            timeout=GIT_TIMEOUT_S,
+        )
+    except (OSError, subprocess.TimeoutExpired):
+        return None
+    return result.stdout.strip() if result.returncode == 0 else None
+
+
+def code_version() -> dict:
+    """{"commit": 40-hex or None, "dirty": tracked files changed since it (None if unknown)}."""
+    commit = _git("rev-parse", "HEAD")
+    if commit is None:
+        return {"commit": None, "dirty": None}
+    status = _git("status", "--porcelain", "--untracked-files=no", "--", str(PACKAGE_DIR))
+    return {"commit": commit, "dirty": None if status is None else bool(status)}
