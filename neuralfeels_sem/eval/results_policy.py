@@ -46,12 +46,18 @@ def time_to_target(run: Run) -> float | None:
     return None
 
 
+def coverage_pct(run: Run) -> float | None:
+    """Share of the run's touches that got a label (the classifier's coverage), in %."""
+    share = get(run.metrics, "classifier_accuracy.coverage")
+    return None if share is None else 100.0 * share
+
+
 def policy_cells(run: Run | None, mark: str = "") -> list[str]:
     if run is None:
-        return ["n/a", "n/a"]
+        return ["n/a", "n/a", "n/a"]
     final = fmt(get(run.metrics, "matching_mean_class_pct")) + mark
     t90 = time_to_target(run)
-    return [final, "-" if t90 is None else f"{t90:.1f} s"]
+    return [final, "-" if t90 is None else f"{t90:.1f} s", fmt(coverage_pct(run))]
 
 
 def regrasps(run: Run | None) -> int | None:
@@ -102,8 +108,10 @@ def mean_row(label: str, rows: Sequence[tuple]) -> list[str]:
         floor,
         fmt(mean(values_of(scripted, "matching_mean_class_pct"))),
         f"{reached[0]} of {len(both)} reached",
+        fmt(mean([c for r in scripted if (c := coverage_pct(r)) is not None])),
         fmt(mean(values_of(active, "matching_mean_class_pct"))),
         f"{reached[1]} of {len(both)} reached",
+        fmt(mean([c for r in active if (c := coverage_pct(r)) is not None])),
         fmt(mean([g for s, a in both if (g := gain(s, a)) is not None]), sign=True),
         count_cell([regrasps(a) for _, a in both]),
     ]
@@ -120,8 +128,10 @@ HEADER = [
     "majority map % (material)",
     "scripted: mean-class %",
     f"scripted: time to {TARGET_PCT:.0f} %",
+    "scripted: touches labelled %",
     "active: mean-class %",
     f"active: time to {TARGET_PCT:.0f} %",
+    "active: touches labelled %",
     "active - scripted",
     "active: regrasps",
 ]
@@ -163,7 +173,8 @@ INTRO = [
     "[simulation](simulation.md#active-touch-sensorpolicyactive)). Per object and seed:",
     "the final mean-class matching of each policy beside the majority map, and the sensor",
     f"time at which its mean-class curve first reached {TARGET_PCT:.0f} % (- where it never did",
-    "in the run), and the regrasps the active run made (`touch_plan.regrasps` in its",
+    "in the run), the share of its touches the classifier labelled (the rest abstained),",
+    "and the regrasps the active run made (`touch_plan.regrasps` in its",
     "`touch_suggestions.json`; n/a where the file is absent). The mean rows pool the seeds",
     "where both policies ran.",
 ]

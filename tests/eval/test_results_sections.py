@@ -136,18 +136,22 @@ def test_policy_runs_pair_scripted_and_active_per_object_and_seed(
         "33.3 (metal)",
         "85.0",
         "-",  # never reached 90 %
+        "75.0",  # touches labelled
         "93.0",
         "1.0 s",
+        "75.0",
         "+8.0",
         "1",  # regrasps of the active run
     ]
     rows = {tuple(r[:2]): r[2:] for r in table_rows(active)}
-    assert rows[("object=kitchen_tool", "1")][2:5] == ["0.5 s", "95.0", "0.5 s"]
+    assert rows[("object=kitchen_tool", "1")][2:7] == ["0.5 s", "75.0", "95.0", "0.5 s", "75.0"]
     assert rows[("object=kitchen_tool", "**mean**")][1:] == [
         "88.0",
         "1 of 2 reached",
+        "75.0",
         "94.0",
         "2 of 2 reached",
+        "75.0",
         "+6.0",
         "1",  # seed 1's active run wrote no touch_suggestions.json: counted as unknown
     ]
@@ -168,8 +172,10 @@ def test_an_active_run_without_a_scripted_partner_takes_the_default_run(
     assert cells(active, "object=patched_toy")[3:] == [
         "92.0†",
         "0.5 s",
+        "75.0",
         "97.0",
         "0.5 s",
+        "75.0",
         "+5.0",
         "n/a",
     ]
