@@ -290,7 +290,10 @@ def update_readme(path: Path, sources: Sequence[Source]) -> None:
         raise DataError("--readme: no default-config multi-material runs among the directories")
     head, rest = text.split(README_BEGIN)
     tail = rest.split(README_END)[1]
-    body = "\n".join([README_BEGIN, *multi_material_table(runs), README_END])
+    stated = (
+        f"*Runs: {code_text(runs)}; {written_text(runs)}; machine and load: {machine_text(runs)}.*"
+    )
+    body = "\n".join([README_BEGIN, *multi_material_table(runs), "", stated, README_END])
     try:
         path.write_text(head + body + tail)
     except OSError as exc:

@@ -326,8 +326,12 @@ def test_readme_table_is_rewritten_between_its_markers(tmp_path: Path, object_sw
     text = readme.read_text()
     assert text.startswith("# Front\n\nbefore\n") and text.endswith("after\n")
     assert "| old |" not in text
-    table = text.split(README_BEGIN)[1].split(README_END)[0]
+    block = text.split(README_BEGIN)[1].split(README_END)[0].strip()
+    table, stated = block.rsplit("\n\n", 1)
     assert table.strip() == section(out.read_text(), "Multi-material objects").strip()
+    # the front page says which code, when and where the figures come from
+    assert stated.startswith("*Runs: code version not recorded; finished 20")
+    assert "; machine and load: " in stated and stated.endswith(".*")
 
 
 def test_readme_without_markers_is_one_line(
