@@ -1,11 +1,13 @@
 """The shipped-checkpoints section of the results page: the held-out figures that the
 training tasks wrote beside the shipped networks (`assets/*/report.json`).
 
-Tactile depth (task=train_tactile_depth): contact IoU and depth error on the held-out
-presses, overall and per finger. Material classifier (task=train_classifier /
-eval_classifier): accuracy on the test split overall, per sensor, per class and per kind
-of press, and on the touches the gates keep. A report that is absent or lacks a figure
-leaves its rows out, never filled in.
+Tactile depth (task=train_tactile_depth): its training data and time, and contact IoU
+and depth error on the held-out presses, overall and per finger. Material classifier
+(task=train_classifier / eval_classifier): its training data (with the kinds of press its
+`manifest.json` records), split and last training round; accuracy on the test split
+overall, per sensor, per class and per kind of press, and on the touches the gates keep,
+with what they left out and why; the confusion matrix. A figure a report lacks is shown
+as n/a, never filled in; an absent report leaves its part out.
 """
 
 from __future__ import annotations
@@ -36,6 +38,17 @@ def number(report: dict, dotted: str, scale: float = 1.0, digits: int = 1) -> st
     return fmt(scale * float(value), digits) if ok else "n/a"
 
 
+def text(report: dict, dotted: str) -> str:
+    """A setting or count as the report wrote it (n/a when absent)."""
+    value = get(report, dotted)
+    return "n/a" if value is None or isinstance(value, dict | list) else str(value)
+
+
+def count(report: dict, dotted: str) -> str:
+    value = get(report, dotted)
+    return str(len(value)) if isinstance(value, list) else "n/a"
+
+
 def tactile_depth_lines(report: dict, path: Path) -> list[str]:
     rows = [["**overall**", number(report, "held_out.overall.contact_iou", digits=3)]]
     rows[0].append(number(report, "held_out.overall.depth_mae_mm", digits=3))
@@ -48,9 +61,12 @@ def tactile_depth_lines(report: dict, path: Path) -> list[str]:
     head = [
         f"### Tactile depth network (`{display_path(path)}`)",
         "",
-        f"{report.get('held_out_samples', 'n/a')} held-out presses over "
-        f"{len(report.get('held_out_backgrounds') or [])} backgrounds not trained on; "
-        f"training took {number(report, 'train_wall_s', digits=0)} s.",
+        f"Trained on {text(report, 'train_samples')} presses over "
+        f"{count(report, 'train_backgrounds')} backgrounds, {text(report, 'settings.epochs')} "
+        f"epochs at batch {text(report, 'settings.batch_size')}; training took "
+        f"{number(report, 'train_wall_s', digits=0)} s. Held out: "
+        f"{text(report, 'held_out_samples')} presses over "
+        f"{count(report, 'held_out_backgrounds')} backgrounds not trained on.",
         "",
     ]
     return head + table(["held-out", "contact IoU", "depth MAE mm"], rows)
@@ -83,7 +99,54 @@ def classifier_lines(report: dict, path: Path) -> list[str]:
         ["accuracy on the kept touches", number(report, "gated_test.accuracy_kept", 100.0)],
     ]
     head = [f"### Material classifier (`{display_path(path)}`)", ""]
-    return head + table(["test figure", "accuracy % (images)"], rows)
+    head += classifier_training_lines(report, read_report(path.parent / "manifest.json"))
+    rows_table = table(["test figure", "accuracy % (images)"], rows)
+    return head + rows_table + gate_lines(report) + confusion_lines(report)
+
+
+def classifier_training_lines(report: dict, manifest: dict | None) -> list[str]:
+    """What the checkpoint was trained on and how its last round ran."""
+    kinds = get(manifest or {}, "dataset.press_counts") or {}
+    presses = ", ".join(f"{kind} {n}" for kind, n in kinds.items())
+    return [
+        f"Data set: {text(report, 'data.images')} simulated images"
+        + (f" (presses: {presses})" if presses else "")
+        + f", split {text(report, 'counts.train')} / {text(report, 'counts.val')} / "
+        f"{text(report, 'counts.test')} (train / validation / test). Last training round: "
+        f"{text(report, 'training.epochs_run')} epochs, lr {text(report, 'training.lr')} "
+        f"({text(report, 'training.lr_schedule')}), batch {text(report, 'training.batch_size')}; "
+        f"kept epoch {text(report, 'training.best_epoch')}, the best on validation.",
+        "",
+    ]
+
+
+def gate_lines(report: dict) -> list[str]:
+    """What the mapper's gates did on the test split (absent from older reports)."""
+    if not isinstance(get(report, "gated_test"), dict):
+        return []
+    return [
+        "",
+        f"The gates (confidence >= {text(report, 'gated_test.min_confidence')}, edge share "
+        f"<= {text(report, 'gated_test.max_edge_share')}) kept "
+        f"{text(report, 'gated_test.kept_count')} of {text(report, 'test_count')} test images; "
+        f"they left out {text(report, 'gated_test.left_out_low_confidence')} for low "
+        f"confidence and {text(report, 'gated_test.left_out_edge')} for a contact near the "
+        "gel's border.",
+    ]
+
+
+def confusion_lines(report: dict) -> list[str]:
+    """The test split's confusion matrix, rows the true class, columns the predicted one."""
+    names, matrix = report.get("class_names"), report.get("confusion")
+    if not isinstance(names, list) or not isinstance(matrix, list) or len(names) != len(matrix):
+        return []
+    rows = [[f"`{name}`", *(str(n) for n in row)] for name, row in zip(names, matrix)]
+    return [
+        "",
+        "Confusion on the test split (rows: true class; columns: predicted):",
+        "",
+        *table(["true class", *(f"`{n}`" for n in names)], rows),
+    ]
 
 
 def assets_section(

@@ -262,7 +262,43 @@ def test_shipped_checkpoints_come_from_their_reports(tmp_path: Path) -> None:
     assert cells(text, "sensor `index`")[1] == "95.0"
     assert cells(text, "press `edge`")[1] == "50.0 (4)"
     assert cells(text, "validation split")[1] == "n/a"  # absent from the report: not filled in
+    assert "Trained on n/a presses over n/a backgrounds" in text
+    assert "The gates" not in text and "Confusion" not in text  # no such blocks reported
     assert assets_section(tmp_path / "none.json", tmp_path / "none.json") == []
+
+
+def test_shipped_classifier_training_gates_and_confusion_come_from_its_files(
+    tmp_path: Path,
+) -> None:
+    from neuralfeels_sem.eval.results_assets import assets_section
+
+    report = {"test_accuracy": 0.75, "test_count": 8, "class_names": ["metal", "wood"]}
+    report["confusion"] = [[3, 1], [1, 3]]
+    report["data"] = {"images": 40}
+    report["counts"] = {"train": 24, "val": 8, "test": 8}
+    report["training"] = {"epochs_run": 5, "best_epoch": 4, "lr": 0.001}
+    report["training"] |= {"lr_schedule": "cosine", "batch_size": 4}
+    report["gated_test"] = {"min_confidence": 0.8, "max_edge_share": 0.5, "kept_count": 6}
+    report["gated_test"] |= {"left_out_low_confidence": 1, "left_out_edge": 1}
+    (tmp_path / "report.json").write_text(json.dumps(report))
+    manifest = {"dataset": {"press_counts": {"centre": 30, "edge": 10}}}
+    (tmp_path / "manifest.json").write_text(json.dumps(manifest))
+    depth = {"train_samples": 20, "train_backgrounds": ["procedural:0", "real.png"]}
+    depth |= {"settings": {"epochs": 3, "batch_size": 2}, "train_wall_s": 9.6}
+    (tmp_path / "depth.json").write_text(json.dumps(depth))
+    text = "\n".join(assets_section(tmp_path / "depth.json", tmp_path / "report.json"))
+    assert (
+        "Trained on 20 presses over 2 backgrounds, 3 epochs at batch 2; training took 10 s" in text
+    )
+    assert "40 simulated images (presses: centre 30, edge 10), split 24 / 8 / 8" in text
+    assert "5 epochs, lr 0.001 (cosine), batch 4; kept epoch 4" in text
+    assert "kept 6 of 8 test images; they left out 1 for low confidence and 1 for" in text
+    assert cells(text, "`metal`")[1:] == ["3", "1"]
+    assert cells(text, "`wood`")[1:] == ["1", "3"]
+    # Without a manifest beside the report the kinds of press are left out.
+    (tmp_path / "manifest.json").unlink()
+    text = "\n".join(assets_section(tmp_path / "depth.json", tmp_path / "report.json"))
+    assert "40 simulated images, split 24 / 8 / 8" in text
 
 
 def test_uncertainty_rows_per_source_and_object(tmp_path: Path, default_sweep: Path) -> None:
