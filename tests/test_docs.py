@@ -10,7 +10,10 @@ import pytest
 from neuralfeels_sem.utils.paths import REPO_DIR
 
 README = REPO_DIR / "README.md"
-PAGES = [README, *sorted((REPO_DIR / "docs").glob("*.md"))]
+# The READMEs shipped beside the networks (neuralfeels_sem/assets/<name>/README.md).
+ASSET_READMES = sorted((REPO_DIR / "neuralfeels_sem" / "assets").glob("*/README.md"))
+CHANGELOG = REPO_DIR / "CHANGELOG.md"
+PAGES = [README, CHANGELOG, *sorted((REPO_DIR / "docs").glob("*.md")), *ASSET_READMES]
 MAX_README_LINES = 250
 
 LINK = re.compile(r"!?\[[^\]]*\]\(\s*<?([^)\s>]+)>?(?:\s+\"[^\"]*\")?\s*\)")
@@ -114,6 +117,9 @@ PROSE_FIGURES = {
     ),
     "a load average": re.compile(r"\bload(?: average)?(?: of| about| between)? \d"),
 }
+# An asset README describes a recipe and links to the results page for its figures; it
+# has no definition that needs a decimal percentage (docs pages do: 100 / 3 = 33.3 %).
+ASSET_PROSE_FIGURES = {"a decimal percentage": DECIMAL_PERCENT}
 # Tables of properties of shipped assets, known by a column of their header.
 ASSET_TABLE_COLUMNS = ("| size (cm) |",)
 README_TABLE_MARKERS = ("<!-- results-table:", "<!-- results-table end")
@@ -132,16 +138,17 @@ def outside_generated_table(lines: list[str]) -> list[str]:
     return kept
 
 
-def measured_figures(text: str) -> list[str]:
+def measured_figures(text: str, prose_figures: dict[str, re.Pattern] = PROSE_FIGURES) -> list[str]:
     """Lines of a page that carry measured figures: a table row with a decimal percentage
-    or two decimal cells (outside settings tables, whose header names a default), or a
-    mean ± std, a measured rate or a load average in prose."""
+    or two decimal cells (outside settings tables, whose header names a default), or one
+    of `prose_figures` in prose (by default a mean ± std, a measured rate or a load
+    average)."""
     found, header = [], None
     for line in outside_generated_table(prose_lines(text)):
         if not line.strip().startswith("|"):
             header = None
             found += [
-                f"{why}: {line.strip()}" for why, p in PROSE_FIGURES.items() if p.search(line)
+                f"{why}: {line.strip()}" for why, p in prose_figures.items() if p.search(line)
             ]
             continue
         if header is None:
@@ -161,7 +168,8 @@ def measured_figures(text: str) -> list[str]:
     ids=lambda p: str(p.relative_to(REPO_DIR)),
 )
 def test_measured_figures_live_on_the_results_page(page: Path) -> None:
-    found = measured_figures(page.read_text())
+    patterns = PROSE_FIGURES | (ASSET_PROSE_FIGURES if page in ASSET_READMES else {})
+    found = measured_figures(page.read_text(), patterns)
     assert not found, (
         f"{page.name} quotes measured figures; generate them on docs/results.md "
         f"(eval/results_*.py) and link there: {found[:3]}"
@@ -190,6 +198,16 @@ def test_the_figure_check_flags_pasted_measurements_and_spares_definitions() -> 
         f"{README_BEGIN_LINE}\n| `plushie` | 84.8 ± 3.6 | 50.0 |\n{README_END_LINE}\n"
     )
     assert measured_figures(definitions) == []
+
+
+def test_asset_readmes_are_checked_and_may_not_quote_percentages_in_prose() -> None:
+    assert {p.parent.name for p in ASSET_READMES} >= {"classifier", "tactile_depth"}
+    prose = "Trained in rounds; the test split scores 97.70 %, centred 99.81 % (see results).\n"
+    assert measured_figures(prose) == []
+    found = measured_figures(prose, PROSE_FIGURES | ASSET_PROSE_FIGURES)
+    assert [f.split(":")[0] for f in found] == ["a decimal percentage"]
+    recipe = "The test split is 15 % of the data; lr 3e-4, 24 epochs, 0.2-1.3 mm textures.\n"
+    assert measured_figures(recipe, PROSE_FIGURES | ASSET_PROSE_FIGURES) == []
 
 
 README_BEGIN_LINE = (
