@@ -30,8 +30,9 @@ def data(tmp_path_factory) -> Path:
 
 @pytest.fixture(scope="module")
 def trained(data: Path, tmp_path_factory) -> Path:
+    # crop_px: inference preprocesses as training did only if every checkpoint says so.
     run_dir = tmp_path_factory.mktemp("run")
-    result = train(data, run_dir, "task.max_epochs=2")
+    result = train(data, run_dir, "task.max_epochs=2", "classifier.crop_px=64")
     assert result.returncode == 0, result.stderr[-3000:]
     return run_dir
 
@@ -71,13 +72,10 @@ def test_training_writes_all_outputs(trained: Path) -> None:
     )
 
 
-def test_every_checkpoint_records_the_contact_crop(data: Path, tmp_path: Path) -> None:
-    # Inference preprocesses as training did only if the checkpoint says so: best.pt must
-    # be usable as classifier.checkpoint on its own (e.g. while training still runs).
-    result = train(data, tmp_path, "task.max_epochs=1", "classifier.crop_px=64")
-    assert result.returncode == 0, result.stderr[-3000:]
+def test_every_checkpoint_records_the_contact_crop(trained: Path) -> None:
+    # best.pt must be usable as classifier.checkpoint on its own (e.g. while training runs).
     for name in ("classifier.pt", "best.pt"):
-        assert load_checkpoint(tmp_path / name).meta["crop_px"] == 64, name
+        assert load_checkpoint(trained / name).meta["crop_px"] == 64, name
 
 
 def test_rerun_in_the_same_run_dir_resumes_from_last_checkpoint(tmp_path: Path) -> None:
