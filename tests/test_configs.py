@@ -119,6 +119,7 @@ def test_cli_out_of_range_exits_2_with_one_line() -> None:
     assert "Traceback" not in result.stderr
 
 
+@pytest.mark.slow  # Hydra's own message for an unknown key; the refusal path is tested above
 def test_cli_typo_fails_with_hydra_message() -> None:
     result = run_cli(["task=info", "objct=plushie"])
     assert result.returncode != 0

@@ -78,6 +78,7 @@ def test_bad_values_fail_validation_with_one_line(overrides: list[str], message:
     assert "\n" not in str(info.value)
 
 
+@pytest.mark.slow  # the same refusal path as test_configs' CLI test; values checked in-process above
 def test_cli_bad_object_values_exit_with_one_line() -> None:
     result = run_cli(["task=info", "object=custom", "object.rescale_to=-1"])
     assert result.returncode == 2, result.stderr
