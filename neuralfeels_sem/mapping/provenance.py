@@ -94,18 +94,21 @@ def comparable_settings(saved: dict, current: dict) -> tuple[dict, dict]:
     return {**added, **saved_flat}, current_flat
 
 
-def differing_settings(saved: dict, current: dict) -> list[str]:
-    """The flat keys (`model.a.b`) whose values differ between two model configs."""
-    saved_flat, current_flat = comparable_settings(saved, current)
+def _differing_keys(saved_flat: dict, current_flat: dict) -> list[str]:
     return sorted(
         k for k in set(saved_flat) | set(current_flat) if saved_flat.get(k) != current_flat.get(k)
     )
 
 
+def differing_settings(saved: dict, current: dict) -> list[str]:
+    """The flat keys (`model.a.b`) whose values differ between two model configs."""
+    return _differing_keys(*comparable_settings(saved, current))
+
+
 def _model_difference(saved: dict, current: dict) -> str | None:
     """'model.a.b: 64 there, 32 here; ...' for the settings that differ, or None."""
     saved_flat, current_flat = comparable_settings(saved, current)
-    keys = differing_settings(saved, current)
+    keys = _differing_keys(saved_flat, current_flat)
     if not keys:
         return None
     shown = [

@@ -26,6 +26,7 @@ from neuralfeels_sem.core.digit import GEL_DISTANCE_M
 from neuralfeels_sem.core.frame import Frame
 from neuralfeels_sem.core.geometry import invert_pose
 from neuralfeels_sem.fields.material_uncertainty import normalised_entropy
+from neuralfeels_sem.perception.touch import TouchLabel
 from neuralfeels_sem.sim.touch_planner import TouchAdvice, TouchScoreConfig
 from neuralfeels_sem.utils.atomic import atomic_write_text
 
@@ -145,11 +146,9 @@ class TouchAdvisor:
         if getattr(self.sensor, "accepts_advice", False):
             self.sensor.advise(frame.index, self.advice)
 
-    def _counts(self, label) -> bool:
+    def _counts(self, label: TouchLabel) -> bool:
         """Whether this touch makes its place less novel (`novelty_from`)."""
-        if self.config.novelty_from == "pressed":
-            return bool(getattr(label, "contact", False))
-        return bool(getattr(label, "usable", False))
+        return label.contact if self.config.novelty_from == "pressed" else label.usable
 
     def on_scores(self, frame_index: int, scores: dict | None, mapper) -> None:
         self.write()

@@ -32,5 +32,6 @@ def code_version() -> dict:
     commit = _git("rev-parse", "HEAD")
     if commit is None:
         return {"commit": None, "dirty": None}
-    status = _git("status", "--porcelain", "--untracked-files=no", "--", str(PACKAGE_DIR))
+    # The whole checkout: conf/ and run.py shape a run as much as the package does.
+    status = _git("status", "--porcelain", "--untracked-files=no")
     return {"commit": commit, "dirty": None if status is None else bool(status)}

@@ -18,14 +18,16 @@ def seed_everything(seed: int, deterministic: bool = True) -> None:
 
     torch.manual_seed(seed)
     if deterministic:
-        deterministic_algorithms(torch)
+        _deterministic_algorithms()
 
 
-def deterministic_algorithms(torch) -> None:
+def _deterministic_algorithms() -> None:
     """torch.use_deterministic_algorithms(True, warn_only=True) without its import of the
     compiler: the public call also sets torch._inductor's flag, importing torch._inductor and
     torch._dynamo (1.2 s on a laptop CPU, in every run and worker) for code that is never
     compiled here. Where the compiler is already loaded, its flag is set as well."""
+    import torch
+
     torch._C._set_deterministic_algorithms(True, warn_only=True)
     inductor_config = sys.modules.get("torch._inductor.config")
     if inductor_config is not None:
