@@ -8,10 +8,14 @@ is farther than a tolerance gets NO_PREDICTION, which is wrong for every class.
 
 from __future__ import annotations
 
+from typing import TYPE_CHECKING
+
 import numpy as np
-import trimesh
 
 from neuralfeels_sem.eval.matching import NO_PREDICTION
+
+if TYPE_CHECKING:  # the config schema imports check_tolerance: keep trimesh out of start-up
+    import trimesh
 
 
 def check_tolerance(tolerance_m: float) -> None:
@@ -40,6 +44,8 @@ def labels_from_mesh(
         raise ValueError(f"points must have shape (N, 3), got {points.shape}")
     if len(mesh.faces) == 0:
         return np.full(len(points), NO_PREDICTION, np.int64), np.full(len(points), np.inf)
+    import trimesh
+
     closest, distance, triangle = trimesh.proximity.closest_point(mesh, points)
     corners = np.asarray(mesh.vertices)[mesh.faces[triangle]]  # (N, 3, 3)
     nearest_corner = np.linalg.norm(corners - closest[:, None, :], axis=2).argmin(axis=1)

@@ -19,7 +19,7 @@ from __future__ import annotations
 import logging
 import time
 from dataclasses import dataclass, field
-from typing import Protocol
+from typing import TYPE_CHECKING, Protocol
 
 import cv2
 import numpy as np
@@ -28,8 +28,10 @@ from scipy.spatial import cKDTree
 
 from neuralfeels_sem.core.frame import CameraReading
 from neuralfeels_sem.core.geometry import invert_pose, transform_points
-from neuralfeels_sem.perception.hand_depth import HandDepthRenderer
 from neuralfeels_sem.perception.plane_fit import fit_plane_ransac
+
+if TYPE_CHECKING:  # pyrender (behind the renderer) loads only when a camera frame is segmented
+    from neuralfeels_sem.perception.hand_depth import HandDepthRenderer
 
 log = logging.getLogger(__name__)
 
@@ -187,6 +189,8 @@ class CameraSegmenter:
             )
         if self._renderer is None or self._renderer.intrinsics != reading.intrinsics:
             self.close()
+            from neuralfeels_sem.perception.hand_depth import HandDepthRenderer
+
             self._renderer = HandDepthRenderer(reading.intrinsics)
         hand = self._renderer.render(reading.world_T_camera, self.hand.link_meshes(q))
         hand = np.where(hand > 0, hand, np.float32(np.inf))
