@@ -77,7 +77,9 @@ class SimSensorConfig:
     _partial_: bool = True  # completed by the task with obj=..., class_names=...
     _convert_: str = "all"
     name: str = "sim"
-    duration_s: float = 10.0
+    # 20 s: at 30 deg/s, alternating axes every 5 s, the object turns 300 degrees about
+    # each axis, so nearly every side passes the fingers and the camera (in 10 s, 150).
+    duration_s: float = 20.0
     fps: float = 10.0
     fingers: list[str] = field(default_factory=lambda: list(FINGERS))
     camera: bool = True

@@ -66,7 +66,7 @@ class SimSensor(Sensor):
         obj: MaterialObject | None = None,
         class_names: Sequence[str] | None = None,
         name: str = "sim",
-        duration_s: float = 10.0,
+        duration_s: float = 20.0,
         fps: float = 10.0,
         fingers: Sequence[str] = FINGERS,
         camera: bool = True,
