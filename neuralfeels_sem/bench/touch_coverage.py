@@ -1,6 +1,6 @@
 """Which materials the rig's fingers touch, scripted gait against the active policy (rig only).
 
-The rig runs the default sensor=sim motion for the default 10 s (100 frames) with no
+The rig runs the default sensor=sim motion for the default run length with no
 rendering and no map. With `active`, each new contact is ranked by a TouchAdvice built
 from the rig's own touches so far (novelty only: without a map every point counts fully
 uncertain), which is what the active policy does before the map has learnt anything.

@@ -12,7 +12,7 @@ from neuralfeels_sem.sim.rig import SimRig
 
 def touched_materials(obj, class_names: tuple[str, ...]) -> tuple[Counter, SimRig]:
     """Finger-frames per material ("ignore" for unlabelled faces) under a touching finger's
-    contact point over the default 10 s run (seed 0), and the rig that made them."""
+    contact point over the default run (seed 0), and the rig that made them."""
     config = SimSensorConfig()
     rig = SimRig(obj, seed=0, **config.rig_motion())
     touched: Counter[str] = Counter()
