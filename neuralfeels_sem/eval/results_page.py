@@ -1,6 +1,6 @@
-"""Write the results page (docs/results.md) from run outputs.
+"""The results page (docs/results.md) from run outputs; the command is tasks/results_page.py.
 
-    python -m neuralfeels_sem.eval.results_page --out docs/results.md [--readme README.md]
+    python -m neuralfeels_sem.tasks.results_page --out docs/results.md [--readme README.md]
         [--bench bench.json] DIR [DIR ...]
 
 Each DIR is a run directory (holds `metrics.json`) or a sweep directory (job
@@ -24,22 +24,22 @@ The page has these parts:
 - speed, from a `make bench` report (`--bench bench.json`), each figure with its load;
 - per source: the simulator oracles the runs used, the machine and load where recorded,
   and when the runs finished.
-A run belongs to the first two parts when its only overrides are the object, the seed and
-bookkeeping (experiment preset, launcher, perception preset, viz.plots, hydra.*); any other
-override makes it a setting.
+A run belongs to the first two parts when it ran today's default config: its only overrides
+are the object, the seed and bookkeeping (experiment preset, launcher, perception preset,
+viz.plots, hydra.*) or set today's default value, and no default it ran with has changed
+since (results_drift.py); anything else makes it a setting.
 """
 
 from __future__ import annotations
 
-import argparse
-import sys
 from collections.abc import Sequence
 from datetime import UTC, datetime
 from pathlib import Path
 
-from neuralfeels_sem.core.errors import DataError, UserError
+from neuralfeels_sem.core.errors import DataError
 from neuralfeels_sem.eval.results_assets import assets_section
 from neuralfeels_sem.eval.results_bench import speed_section
+from neuralfeels_sem.eval.results_drift import show
 from neuralfeels_sem.eval.results_policy import is_policy_run, policy_section
 from neuralfeels_sem.eval.results_pose import pose_runs, pose_section
 from neuralfeels_sem.eval.results_resume import resume_pairs, resume_section
@@ -48,7 +48,6 @@ from neuralfeels_sem.eval.results_runs import (
     Source,
     describe_oracles,
     display_path,
-    load_source,
     oracles_of,
 )
 from neuralfeels_sem.eval.results_tables import (
@@ -60,7 +59,7 @@ from neuralfeels_sem.eval.results_tables import (
 )
 from neuralfeels_sem.eval.results_uncertainty import uncertainty_section
 
-COMMAND = "python -m neuralfeels_sem.eval.results_page"
+COMMAND = "python -m neuralfeels_sem.tasks.results_page"  # the wiring that calls render()
 
 
 # ---------------------------------------------------------------------------- sources
@@ -129,6 +128,18 @@ def plural(n: int, word: str) -> str:
     return f"{n} {word}{'' if n == 1 else 's'}"
 
 
+def drift_lines(runs: Sequence[Run]) -> list[str]:
+    """A sub-bullet naming the defaults changed since the runs (they count as settings)."""
+    changed: dict[str, set[str]] = {}
+    for run in runs:
+        for key, (then, now) in run.drift.items():
+            changed.setdefault(key, set()).add(f"{show(then)} (today {show(now)})")
+    if not changed:
+        return []
+    items = "; ".join(f"`{key}` {', '.join(sorted(v))}" for key, v in sorted(changed.items()))
+    return [f"  - defaults changed since these runs, so shown as their settings: {items}"]
+
+
 def source_lines(source: Source) -> list[str]:
     """A bullet per source: what it holds, then its oracles and machine as sub-bullets."""
     if source.kind == "run":
@@ -154,6 +165,7 @@ def source_lines(source: Source) -> list[str]:
         else:
             where = ", ".join(sorted(set(origins)))
             lines.append(f"  - oracles ({who}from {where}): {describe_oracles(names)}")
+    lines += drift_lines(source.runs)
     wall = values_of(source.runs, "wall_s")
     machine = f"  - machine/load: {machine_text(source.runs)}"
     if wall:
@@ -241,7 +253,6 @@ def settings_sections(sources: Sequence[Source]) -> list[str]:
 
 def render(sources: Sequence[Source], command: str, bench: Path | None = None) -> str:
     runs = table_runs(sources)
-    defaults = [r for r in runs if not r.setting]
     lines = [
         "# Results",
         "",
@@ -257,8 +268,8 @@ def render(sources: Sequence[Source], command: str, bench: Path | None = None) -
         *material_sections(runs),
         *perception_section(runs),
         *uncertainty_section(sources, runs),
-        *pose_section(sources, defaults),
-        *policy_section(sources, defaults),
+        *pose_section(sources, runs),
+        *policy_section(sources, runs),
         *resume_section(sources),
         *settings_sections(sources),
         *assets_section(),
@@ -310,43 +321,3 @@ def build_command(
     parts += [f"--readme {display_path(readme)}"] if readme is not None else []
     parts += [f"--bench {display_path(bench)}"] if bench is not None else []
     return " ".join(parts + [display_path(Path(d)) for d in dirs])
-
-
-def main(argv: Sequence[str] | None = None) -> int:
-    parser = argparse.ArgumentParser(
-        prog=COMMAND, description="Write the results page from run and sweep directories."
-    )
-    parser.add_argument("--out", type=Path, help="markdown file to write (default: stdout)")
-    parser.add_argument(
-        "--readme", type=Path, help="also rewrite this README's results table (between markers)"
-    )
-    parser.add_argument(
-        "--bench", type=Path, help="a `make bench` report (bench.json) for the speed section"
-    )
-    parser.add_argument("dirs", nargs="+", metavar="DIR", help="run or sweep directory")
-    args = parser.parse_args(argv)
-    try:
-        sources = [load_source(Path(d)) for d in args.dirs]
-        command = build_command(args.out, args.dirs, args.bench, args.readme)
-        page = render(sources, command, args.bench)
-        if args.out is None:
-            sys.stdout.write(page)
-        else:
-            try:
-                args.out.parent.mkdir(parents=True, exist_ok=True)
-                args.out.write_text(page)
-            except OSError as exc:
-                raise DataError(f"{args.out}: cannot write ({exc.strerror})") from None
-            runs = sum(len(s.runs) for s in sources)
-            print(f"wrote {args.out} ({runs} runs from {len(sources)} directories)")
-        if args.readme is not None:
-            update_readme(args.readme, sources)
-            print(f"rewrote the results table of {args.readme}")
-    except UserError as exc:
-        print(f"error: {exc}", file=sys.stderr)
-        return exc.exit_code
-    return 0
-
-
-if __name__ == "__main__":
-    sys.exit(main())

@@ -4,9 +4,9 @@ One table per source that holds `sensor.policy` runs, a row per object and seed:
 majority map, then for each policy the final mean-class matching and the time (sensor
 seconds) at which the run's mean-class curve first reached TARGET_PCT, and the active
 run's gain. The scripted partner is the run with `sensor.policy=scripted` in the same
-source (same code, run side by side); where the source has none, the default-config run
-of the same object, seed and oracles among the page's sources stands in, marked with a
-dagger.
+source (same code, run side by side); where the source has none, the scripted run of the
+same object, seed, oracles and other settings among the page's sources stands in, marked
+with a dagger.
 """
 
 from __future__ import annotations
@@ -32,7 +32,7 @@ SUGGESTIONS = "touch_suggestions.json"
 
 
 def is_policy_run(run: Run) -> bool:
-    return POLICY_KEY in run.setting
+    return POLICY_KEY in run.overrides  # scripted, today's default, is not a setting
 
 
 def time_to_target(run: Run) -> float | None:
@@ -72,18 +72,18 @@ def regrasps(run: Run | None) -> int | None:
     return len(found) if isinstance(found, list) else None
 
 
-def pairs(runs: Sequence[Run], defaults: Sequence[Run], varying: Sequence[str]) -> list[tuple]:
+def pairs(runs: Sequence[Run], candidates: Sequence[Run], varying: Sequence[str]) -> list[tuple]:
     """(label, seed, scripted run or None, stand-in flag, active run or None) per row."""
     rows: dict[tuple, dict] = {}
     for run in runs:
         key = (setting_label(run, varying), run.seed, oracles_cell(run))
-        rows.setdefault(key, {})[run.setting[POLICY_KEY]] = run
+        rows.setdefault(key, {})[run.overrides[POLICY_KEY]] = run
     out = []
     for (label, seed, _), found in rows.items():
         scripted, active = found.get("scripted"), found.get("active")
         stand_in = scripted is None and active is not None
         if stand_in:
-            scripted = reference_run(active, defaults)
+            scripted = reference_run(active, candidates, varied=POLICY_KEY)
         out.append((label, seed, scripted, stand_in and scripted is not None, active))
     return sorted(out, key=lambda p: (p[0], p[1] is None, p[1] or 0))
 
@@ -137,11 +137,11 @@ HEADER = [
 ]
 
 
-def policy_table(source: Source, runs: Sequence[Run], defaults: Sequence[Run]) -> list[str]:
+def policy_table(source: Source, runs: Sequence[Run], candidates: Sequence[Run]) -> list[str]:
     keys = sorted({k for r in runs for k in r.setting if k != POLICY_KEY})
     varying = [k for k in keys if len({r.setting.get(k) for r in runs}) > 1]
     constant = [k for k in keys if k not in varying]
-    rows, found = [], pairs(runs, defaults, varying)
+    rows, found = [], pairs(runs, candidates, varying)
     for label in dict.fromkeys(p[0] for p in found):
         members = [p for p in found if p[0] == label]
         for _, seed, scripted, stand_in, active in members:
@@ -160,8 +160,8 @@ def policy_table(source: Source, runs: Sequence[Run], defaults: Sequence[Run]) -
         lines += [f"Every run here: {fixed}.", ""]
     if any(p[3] for p in found):
         lines += [
-            f"{STAND_IN} no scripted run in this source: the default-config run of the same",
-            "object, seed and oracles from the object tables above (another sweep).",
+            f"{STAND_IN} no scripted run in this source: the scripted run of the same object,",
+            "seed, oracles and other settings from another source of this page.",
             "",
         ]
     return lines + table(HEADER, rows)
@@ -180,12 +180,12 @@ INTRO = [
 ]
 
 
-def policy_section(sources: Sequence[Source], defaults: Sequence[Run]) -> list[str]:
+def policy_section(sources: Sequence[Source], candidates: Sequence[Run]) -> list[str]:
     lines: list[str] = []
     for source in sources:
         members = [r for r in source.runs if is_policy_run(r)]
         if members:
-            lines += policy_table(source, members, defaults) + [""]
+            lines += policy_table(source, members, candidates) + [""]
     if not lines:
         return []
     return ["", "## Active touch", "", *INTRO, "", *lines[:-1]]

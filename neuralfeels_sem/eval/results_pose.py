@@ -34,11 +34,11 @@ def pose_runs(source: Source) -> tuple[list[Run], list[Run]]:
     """(tracked runs, the source's own `mapping.pose=gt` runs); the second are the tracked
     runs' partners (same sweep, same code) and go with them, but only where there are any."""
     tracked = [r for r in source.runs if is_tracked(r)]
-    partners = [r for r in source.runs if r.setting.get(POSE_KEY) == "gt"] if tracked else []
+    partners = [r for r in source.runs if r.overrides.get(POSE_KEY) == "gt"] if tracked else []
     return tracked, partners
 
 
-def partner_of(run: Run, partners: Sequence[Run], defaults: Sequence[Run]) -> Run | None:
+def partner_of(run: Run, partners: Sequence[Run], candidates: Sequence[Run]) -> Run | None:
     """The `pose=gt` run to compare with: the source's run with the same other settings,
     object and seed, else the default-config run of the object and seed."""
     rest = {k: v for k, v in run.setting.items() if k != POSE_KEY}
@@ -46,7 +46,7 @@ def partner_of(run: Run, partners: Sequence[Run], defaults: Sequence[Run]) -> Ru
         same = {k: v for k, v in other.setting.items() if k != POSE_KEY} == rest
         if same and other.object == run.object and other.seed == run.seed:
             return other
-    return reference_run(run, defaults, dropped=("object_pose",))
+    return reference_run(run, candidates, dropped=("object_pose",), varied=POSE_KEY)
 
 
 def load_of(run: Run) -> float | None:
@@ -108,7 +108,7 @@ HEADER = [
 
 
 def pose_table(
-    source: Source, runs: Sequence[Run], partners: Sequence[Run], defaults: Sequence[Run]
+    source: Source, runs: Sequence[Run], partners: Sequence[Run], candidates: Sequence[Run]
 ) -> list[str]:
     """A row per run, then a row per setting with the means over its seeds."""
     keys = sorted({k for r in runs for k in r.setting})
@@ -119,7 +119,7 @@ def pose_table(
         groups.setdefault(setting_label(run, varying), []).append(run)
     rows = []
     for label, members in groups.items():
-        refs = {id(r): partner_of(r, partners, defaults) for r in members}
+        refs = {id(r): partner_of(r, partners, candidates) for r in members}
         for run in by_seed(members):
             ref = refs[id(run)]
             rows.append(pose_row(label, str(run.seed), [run], [ref] if ref else []))
@@ -139,19 +139,19 @@ INTRO = [
     "(see [pose](pose.md)). Pose error: the mean distance between ground-truth surface",
     "samples placed by the tracked and by the true pose, averaged over frames, its maximum",
     "and its last value. A `pose=gt` column is the run of the same object, seed and other",
-    "settings with `mapping.pose=gt` in the same source, else the default-config run of the",
-    "object and seed among the sources of this page (n/a where there is none); the `pose=gt`",
+    "settings with `mapping.pose=gt` in the same source, else the run of the object, seed and",
+    "other settings among the sources of this page (n/a where there is none); the `pose=gt`",
     "runs of a source go with its tracked runs here. Tracking time per frame",
     "scales with the load of the shared machine, so it compares only roughly.",
 ]
 
 
-def pose_section(sources: Sequence[Source], defaults: Sequence[Run]) -> list[str]:
+def pose_section(sources: Sequence[Source], candidates: Sequence[Run]) -> list[str]:
     lines: list[str] = []
     for source in sources:
         tracked, partners = pose_runs(source)
         if tracked:
-            lines += pose_table(source, tracked, partners, defaults) + [""]
+            lines += pose_table(source, tracked, partners, candidates) + [""]
     if not lines:
         return []
     return ["", "## Pose tracking", "", *INTRO, "", *lines[:-1]]

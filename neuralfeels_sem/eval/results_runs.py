@@ -5,6 +5,7 @@ from __future__ import annotations
 import json
 from collections.abc import Sequence
 from dataclasses import dataclass, field
+from functools import cached_property
 from pathlib import Path
 from typing import Any
 
@@ -13,6 +14,7 @@ import yaml
 from neuralfeels_sem.core.errors import DataError
 from neuralfeels_sem.eval.aggregate import read_job
 from neuralfeels_sem.eval.oracles import ORACLES, oracles_used
+from neuralfeels_sem.eval.results_drift import drift, redundant, show
 
 # Overrides that do not change what a run measures.
 # `perception` (a preset of oracles) is not a setting here: the object tables have an
@@ -29,6 +31,9 @@ class Run:
     overrides: dict[str, str]
     metrics: dict
     config: dict | None  # .hydra/config.yaml, unresolved
+    # Today's config for this run's object, preset and groups, flattened and unresolved
+    # (set by tasks/results_page.py); None: settings are read from the overrides alone.
+    today: dict | None = None
 
     @property
     def object(self) -> str:
@@ -47,10 +52,12 @@ class Run:
         except (TypeError, ValueError):
             return None
 
-    @property
+    @cached_property  # runs are not changed once loaded: dataclasses.replace makes a new one
     def setting(self) -> dict[str, str]:
-        """Overrides that change what the run measures (not the object or the seed)."""
-        return {
+        """What the run measures beside today's default config (not the object or the seed):
+        its overrides, less those that set today's default, plus the defaults it ran with
+        that have changed since (`drift`)."""
+        explicit = {
             k: v
             for k, v in self.overrides.items()
             if k != "object"
@@ -58,6 +65,18 @@ class Run:
             and not k.startswith("hydra")
             and BOOKKEEPING_VALUES.get(k) != v
         }
+        if self.today is None:
+            return explicit
+        same = redundant(explicit, self.today)
+        out = {k: v for k, v in explicit.items() if k not in same}
+        return out | {k: show(old) for k, (old, _) in self.drift.items()}
+
+    @cached_property
+    def drift(self) -> dict[str, tuple]:
+        """{key: (value the run used, today's default)} for defaults changed since the run."""
+        if self.today is None or self.config is None:
+            return {}
+        return drift(self.config, self.overrides, self.today)
 
     @property
     def single_material(self) -> bool:
@@ -182,8 +201,11 @@ def describe_oracles(names: Sequence[str]) -> str:
     return "; ".join(ORACLES.get(n, n) for n in names)
 
 
-def reference_run(run: Run, candidates: Sequence[Run], dropped: Sequence[str] = ()) -> Run | None:
-    """The default-config run of the same object and seed that `run` is compared with.
+def reference_run(
+    run: Run, candidates: Sequence[Run], dropped: Sequence[str] = (), varied: str = ""
+) -> Run | None:
+    """The run of the same object, seed and settings that `run` is compared with, but for
+    the setting `varied` (the pose source, the touch policy) left at today's default.
 
     Its oracles must be those of `run` plus, at most, the ones named in `dropped` (a
     tracked run drops `object_pose`, which its `pose=gt` reference uses); None when no
@@ -191,8 +213,9 @@ def reference_run(run: Run, candidates: Sequence[Run], dropped: Sequence[str] = 
     """
     names, _ = oracles_of(run)
     own = set(names or ()) - set(dropped)
+    rest = {k: v for k, v in run.setting.items() if k != varied}
     for other in candidates:
-        if other.setting or other.object != run.object or other.seed != run.seed:
+        if other.setting != rest or other.object != run.object or other.seed != run.seed:
             continue
         theirs, _ = oracles_of(other)
         if theirs is not None and set(theirs) - set(dropped) == own:

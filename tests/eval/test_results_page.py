@@ -11,7 +11,7 @@ from pathlib import Path
 import pytest
 import yaml
 
-from neuralfeels_sem.eval.results_page import main
+from neuralfeels_sem.tasks.results_page import main
 from tests.viz.test_sweep_plots import write_job
 
 SIM_CONFIG = {
@@ -184,7 +184,7 @@ def test_single_material_objects_are_reported_by_the_classifier(
 def test_header_sources_oracles_and_failures(tmp_path: Path, object_sweep: Path) -> None:
     page = generate(tmp_path, object_sweep)
     assert "generated" in page.splitlines()[2].lower()
-    assert "python -m neuralfeels_sem.eval.results_page --out" in page
+    assert "python -m neuralfeels_sem.tasks.results_page --out" in page
     assert str(object_sweep.name) in page.split("```")[1]
     sources = section(page, "Sources")
     assert "(sweep: 8 runs with metrics.json; 1 failed: 8)" in sources
@@ -270,7 +270,7 @@ def test_single_run_oracles_come_from_its_config(tmp_path: Path) -> None:
     run = tmp_path / "outputs" / "map" / "plushie"
     (run / ".hydra").mkdir(parents=True)
     (run / ".hydra" / "config.yaml").write_text(yaml.safe_dump(SIM_CONFIG))
-    (run / ".hydra" / "overrides.yaml").write_text(yaml.safe_dump(["sensor=sim"]))
+    (run / ".hydra" / "overrides.yaml").write_text(yaml.safe_dump(["sensor=sim", "perception=oracle"]))
     metrics = run_metrics(
         70.0, 97.0, 50.0, 96.0, "fabric", machine={"cpus": 2}, load_avg=[1.2, 0.9, 0.7]
     )
@@ -301,7 +301,7 @@ def test_bad_input_is_one_line_and_exit_code_2(
     assert err.startswith("error: ") and str(empty) in err and "\n" not in err
     missing = tmp_path / "nope"
     proc = subprocess.run(
-        [sys.executable, "-m", "neuralfeels_sem.eval.results_page", str(missing)],
+        [sys.executable, "-m", "neuralfeels_sem.tasks.results_page", str(missing)],
         capture_output=True,
         text=True,
     )

@@ -1,0 +1,102 @@
+"""Which of a run's settings differ from today's defaults.
+
+A run keeps the config it ran with (`.hydra/config.yaml`, unresolved). When a default
+changes after the run (the simulated run's length, a mapper setting), a run without
+overrides no longer measures today's default config, and an override that set today's
+value is no longer another setting. The results page compares each run's recorded config,
+key by key, with today's config composed from the same object, experiment, perception
+preset and config groups (`tasks/results_page.py` composes it), and reads the run's
+setting from the differences.
+"""
+
+from __future__ import annotations
+
+from typing import Any
+
+import yaml
+
+# Keys never compared: the object group is what the run is about (a generated object's
+# seed, a custom mesh), hydra's own settings are bookkeeping, and these top-level keys
+# only name the run or decide whether pictures are drawn.
+IGNORED_PREFIXES = ("object.", "hydra.")
+IGNORED_KEYS = frozenset({"seed", "viz.plots"})
+_MISSING = object()
+
+
+def flatten(tree: Any, prefix: str = "") -> dict[str, Any]:
+    """{'a.b': leaf} for a nested dict; lists are leaves."""
+    if not isinstance(tree, dict):
+        return {prefix: tree} if prefix else {}
+    out: dict[str, Any] = {}
+    for key, value in tree.items():
+        name = f"{prefix}.{key}" if prefix else str(key)
+        if isinstance(value, dict):
+            out.update(flatten(value, name))
+        else:
+            out[name] = value
+    return out
+
+
+def same_value(a: Any, b: Any) -> bool:
+    """Equal as config values: 20 and 20.0 are the same, True and 1 are not."""
+    if isinstance(a, bool) or isinstance(b, bool):
+        return type(a) is type(b) and a == b
+    if isinstance(a, int | float) and isinstance(b, int | float):
+        return float(a) == float(b)
+    if isinstance(a, list | tuple) and isinstance(b, list | tuple):
+        return len(a) == len(b) and all(same_value(x, y) for x, y in zip(a, b, strict=True))
+    return a == b
+
+
+def parse_override(value: str) -> Any:
+    """An override's value as Hydra reads it (YAML scalars and lists; else the string)."""
+    try:
+        return yaml.safe_load(value)
+    except yaml.YAMLError:
+        return value
+
+
+def show(value: Any) -> str:
+    if isinstance(value, list | tuple):
+        return "[" + ",".join(show(v) for v in value) + "]"
+    return (
+        "null" if value is None else str(value).lower() if isinstance(value, bool) else str(value)
+    )
+
+
+def compared(key: str) -> bool:
+    return key not in IGNORED_KEYS and not key.startswith(IGNORED_PREFIXES)
+
+
+def drift(recorded: dict, overrides: dict[str, str], today: dict[str, Any]) -> dict[str, tuple]:
+    """{key: (the run's value, today's default)} for every compared leaf the run did not
+    override whose recorded value differs from today's; keys only one side has are skipped
+    (a setting added or removed since)."""
+    out = {}
+    for key, value in flatten(recorded).items():
+        now = today.get(key, _MISSING)
+        if key in overrides or now is _MISSING or not compared(key):
+            continue
+        if not same_value(value, now):
+            out[key] = (value, now)
+    return out
+
+
+def redundant(overrides: dict[str, str], today: dict[str, Any]) -> set[str]:
+    """Overridden leaves whose value is today's default (no longer another setting)."""
+    return {
+        key
+        for key, value in overrides.items()
+        if key in today and same_value(parse_override(value), today[key])
+    }
+
+
+def group_overrides(overrides: dict[str, str], recorded: dict | None) -> list[str]:
+    """The overrides that pick config groups or presets (not leaves of the recorded config):
+    today's config must be composed with them for the leaves to be comparable."""
+    leaves = flatten(recorded) if recorded else {}
+    return [
+        f"{key}={value}"
+        for key, value in sorted(overrides.items())
+        if key not in leaves and not key.startswith("hydra") and key not in ("launcher",)
+    ]

@@ -1,0 +1,95 @@
+"""Runs judged against today's defaults: a default changed since a run makes it a setting."""
+
+from __future__ import annotations
+
+import copy
+from pathlib import Path
+
+import pytest
+import yaml
+from omegaconf import OmegaConf
+
+from neuralfeels_sem.eval.results_drift import (
+    drift,
+    flatten,
+    group_overrides,
+    redundant,
+    same_value,
+    show,
+)
+from tests.eval.test_results_page import cells, generate, run_metrics, section
+from tests.helpers import compose_config
+from tests.viz.test_sweep_plots import write_job
+
+
+def test_flatten_keeps_lists_as_leaves() -> None:
+    tree = {"a": {"b": 1, "c": {"d": [1, 2]}}, "e": None}
+    assert flatten(tree) == {"a.b": 1, "a.c.d": [1, 2], "e": None}
+
+
+@pytest.mark.parametrize(
+    ("a", "b", "same"),
+    [(20, 20.0, True), (10.0, 20.0, False), (True, 1, False), ([1, 2], [1.0, 2.0], True),
+     ("${seed}", "${seed}", True), (None, 0, False)],
+)  # fmt: skip
+def test_values_compare_as_config_values(a, b, same: bool) -> None:
+    assert same_value(a, b) is same
+
+
+def test_drift_skips_overridden_ignored_and_one_sided_keys() -> None:
+    recorded = {
+        "seed": 3,
+        "sensor": {"duration_s": 10.0, "fps": 10.0, "old_key": 1},
+        "object": {"seed": 1000},
+        "mapping": {"pose": "track"},
+        "viz": {"plots": False},
+    }
+    today = {"seed": 0, "sensor.duration_s": 20.0, "sensor.fps": 10.0, "object.seed": 0,
+             "mapping.pose": "gt", "viz.plots": True}  # fmt: skip
+    assert drift(recorded, {"mapping.pose": "track"}, today) == {"sensor.duration_s": (10.0, 20.0)}
+
+
+def test_an_override_of_todays_value_is_redundant() -> None:
+    today = {"sensor.duration_s": 20.0, "sensor.fingers": ["index", "thumb"]}
+    overrides = {"sensor.duration_s": "20", "sensor.fingers": "[index,thumb]", "x": "1"}
+    assert redundant(overrides, today) == {"sensor.duration_s", "sensor.fingers"}
+    assert redundant({"sensor.duration_s": "30"}, today) == set()
+
+
+def test_groups_are_the_overrides_that_are_not_leaves() -> None:
+    recorded = {"sensor": {"duration_s": 20.0}, "seed": 1}
+    overrides = {"object": "patchwork", "sensor.duration_s": "20", "seed": "1",
+                 "launcher": "joblib", "hydra.job.chdir": "false", "perception": "oracle"}  # fmt: skip
+    assert group_overrides(overrides, recorded) == ["object=patchwork", "perception=oracle"]
+
+
+def test_show_writes_values_as_overrides_do() -> None:
+    assert [show(v) for v in (10.0, True, None, ["a", 1])] == ["10.0", "true", "null", "[a,1]"]
+
+
+def _recorded(object_name: str) -> dict:
+    cfg = compose_config([f"object={object_name}"])
+    return OmegaConf.to_container(cfg, resolve=False)
+
+
+def _job(sweep: Path, name: str, overrides: list[str], config: dict, value: float) -> None:
+    write_job(sweep, name, overrides, run_metrics(value, 90.0, 25.0, 33.0, "plastic"))
+    (sweep / name / ".hydra" / "config.yaml").write_text(yaml.safe_dump(config))
+
+
+def test_a_run_made_before_a_default_changed_is_shown_with_its_setting(tmp_path: Path) -> None:
+    today = _recorded("patchwork")
+    then = copy.deepcopy(today)
+    then["sensor"]["duration_s"] = today["sensor"]["duration_s"] / 2
+    sweep = tmp_path / "multirun" / "drift"
+    _job(sweep, "0", ["object=patchwork", "seed=0"], then, 80.0)  # ran before the change
+    same = f"sensor.duration_s={today['sensor']['duration_s']}"  # sets today's default
+    _job(sweep, "1", ["object=patchwork", "seed=1", same], today, 90.0)
+    page = generate(tmp_path, sweep)
+    default_row = cells(section(page, "Multi-material objects"), "`patchwork`")
+    assert default_row[2:4] == ["1", "90.0"]  # only the run at today's default
+    other = section(page, "Other settings")
+    assert f"sensor.duration_s={then['sensor']['duration_s']}" in other
+    sources = section(page, "Sources")
+    assert "defaults changed since these runs" in sources
+    assert f"(today {today['sensor']['duration_s']})" in sources
