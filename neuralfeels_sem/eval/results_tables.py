@@ -172,12 +172,15 @@ def multi_material_table(runs: Sequence[Run]) -> list[str]:
     )
 
 
-def single_material_table(runs: Sequence[Run]) -> list[str]:
+def single_material_table(runs: Sequence[Run], label=None) -> list[str]:
+    """Classifier figures per object (or per `label(run)`, e.g. a setting) and oracles."""
+    first = "object" if label is None else "setting"
+    label = label or (lambda r: f"`{r.object}`")
     rows = []
-    for (obj, oracles), members in by_object_and_oracles(runs).items():
+    for (name, oracles), members in group_by(runs, lambda r: (label(r), oracles_cell(r))).items():
         rows.append(
             [
-                f"`{obj}`",
+                name,
                 oracles,
                 str(len(members)),
                 seeds_text(members),
@@ -189,7 +192,7 @@ def single_material_table(runs: Sequence[Run]) -> list[str]:
         )
     return table(
         [
-            "object",
+            first,
             "oracles",
             "runs",
             "seeds",
@@ -237,12 +240,29 @@ def settings_table(source: Source, runs: Sequence[Run]) -> list[str]:
     keys = sorted({k for r in runs for k in r.setting})
     varying = [k for k in keys if len({r.setting.get(k) for r in runs}) > 1]
     constant = [k for k in keys if k not in varying]
+    lines = [f"### `{source.label}`", ""]
+    if constant:
+        fixed = ", ".join(f"`{k}={runs[0].setting[k]}`" for k in constant)
+        lines += [f"Every run here: {fixed}.", ""]
+    single = [r for r in runs if r.single_material]
+    multi = [r for r in runs if not r.single_material]
+    if single:  # a constant map scores 100 % there: the classifier's figures instead
+        lines += single_material_table(single, lambda r: setting_label(r, varying))
+        lines += [""] if multi else []
+    return lines + (multi_setting_rows(multi, varying) if multi else [])
+
+
+def multi_setting_rows(runs: Sequence[Run], varying: Sequence[str]) -> list[str]:
+    """The settings table's rows for multi-material runs: matching beside the majority map."""
     with_pace = any(r.metrics.get("pace") == "realtime" for r in runs)
     rows = []
-    for label, members in group_by(runs, lambda r: setting_label(r, varying)).items():
+    # Runs of one setting pool only when they leaned on the same oracles, as in the object tables.
+    groups = group_by(runs, lambda r: (setting_label(r, varying), oracles_cell(r)))
+    for (label, oracles), members in groups.items():
         floor, _ = majority_cells(members)
         row = [
             label,
+            oracles,
             seeds_text(members),
             per_seed_cell(members) or "n/a",
             "**" + mean_std(values_of(members, "matching_mean_class_pct")) + "**",
@@ -255,6 +275,7 @@ def settings_table(source: Source, runs: Sequence[Run]) -> list[str]:
         rows.append(row + (pace_cells(members) if with_pace else []))
     header = [
         "setting",
+        "oracles",
         "seeds",
         "mean-class % per seed",
         "mean-class % (mean ± std)",
@@ -266,11 +287,7 @@ def settings_table(source: Source, runs: Sequence[Run]) -> list[str]:
     ]
     if with_pace:
         header += [name for _, name, _ in PACE_COLUMNS] + ["lag max s"]
-    lines = [f"### `{source.label}`", ""]
-    if constant:
-        fixed = ", ".join(f"`{k}={runs[0].setting[k]}`" for k in constant)
-        lines += [f"Every run here: {fixed}.", ""]
-    return lines + table(header, rows)
+    return table(header, rows)
 
 
 PERCEPTION_KEYS = (

@@ -217,6 +217,7 @@ def test_ablation_sweep_gets_a_settings_table(tmp_path: Path) -> None:
     assert "Every run here: `sensor.duration_s=3`." in other
     row = cells(other, "object=patched_toy, mapping.mapper.label_vote_radius=0.01")
     assert row[1:] == [
+        "not recorded",  # oracles: neither metrics.json nor a config says
         "0-1",
         "60.0, 61.0",
         "**60.5 ± 0.7**",
@@ -226,12 +227,24 @@ def test_ablation_sweep_gets_a_settings_table(tmp_path: Path) -> None:
         "0.900",
         "70",  # wall time per run, s
     ]
-    assert cells(other, "object=patched_toy, mapping.mapper.label_vote_radius=0.02")[3] == (
+    assert cells(other, "object=patched_toy, mapping.mapper.label_vote_radius=0.02")[4] == (
         "**90.5 ± 0.7**"
     )
     assert "frames dropped" not in other  # only where a run streamed at sensor.pace=realtime
     # Runs with settings never reach the object tables.
     assert "No default-config multi-material runs." in page
+
+
+def test_a_setting_pools_runs_only_with_the_same_oracles(tmp_path: Path) -> None:
+    sweep = tmp_path / "ablation"
+    for k, oracles in enumerate((["object_pose"], ["object_pose", "camera_mask"])):
+        metrics = run_metrics(80.0 + k, 95.0, 50.0, 54.0, "plastic", oracles=oracles)
+        write_job(sweep, str(k), ["object=patched_toy", "seed=0", "sensor.duration_s=3"], metrics)
+    rows = table_rows(section(generate(tmp_path, sweep), "Other settings"))
+    assert [(r[1], r[4]) for r in rows] == [
+        ("pose", "**80.0 ± 0.0**"),
+        ("pose, mask", "**81.0 ± 0.0**"),
+    ]
 
 
 def test_runs_with_other_oracles_get_their_own_row_and_a_perception_table(
@@ -270,7 +283,9 @@ def test_single_run_oracles_come_from_its_config(tmp_path: Path) -> None:
     run = tmp_path / "outputs" / "map" / "plushie"
     (run / ".hydra").mkdir(parents=True)
     (run / ".hydra" / "config.yaml").write_text(yaml.safe_dump(SIM_CONFIG))
-    (run / ".hydra" / "overrides.yaml").write_text(yaml.safe_dump(["sensor=sim", "perception=oracle"]))
+    (run / ".hydra" / "overrides.yaml").write_text(
+        yaml.safe_dump(["sensor=sim", "perception=oracle"])
+    )
     metrics = run_metrics(
         70.0, 97.0, 50.0, 96.0, "fabric", machine={"cpus": 2}, load_avg=[1.2, 0.9, 0.7]
     )
@@ -384,3 +399,13 @@ def test_a_bad_bench_report_is_one_line(
     assert err.startswith(f"error: {bad}: not a bench report") and "\n" not in err
     assert main(["--bench", str(tmp_path / "none.json"), str(object_sweep)]) == 2
     assert "run `make bench` first" in capsys.readouterr().err
+
+
+def test_single_material_runs_with_a_setting_get_classifier_figures(tmp_path: Path) -> None:
+    sweep = tmp_path / "single"
+    metrics = run_metrics(100.0, 100.0, 100.0, 100.0, "wood", accuracy=0.9, coverage=0.5)
+    write_job(sweep, "0", ["object=candle_holder", "seed=0", "sensor.duration_s=3"], metrics)
+    other = section(generate(tmp_path, sweep), "Other settings")
+    assert "classifier acc. on judged touches %" in other
+    assert "mean-class % per seed" not in other  # a constant map scores 100 % there
+    assert cells(other, "object=candle_holder")[4:6] == ["90.0 ± 0.0", "50.0 ± 0.0"]
