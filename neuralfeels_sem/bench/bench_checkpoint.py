@@ -5,7 +5,8 @@ rows are drawn again on load) and trained by the default mapper (MapperConfig de
 on the analytic sphere scene; the checkpoint is written as a run writes it (`auto`
 storage: mapping/checkpoint_codec.py) and beside it, for the ratio, in `exact` storage
 and whole (the format before the rows were packed). Size depends on the share of table
-rows training updated, reported with it; the default 10 s run updates about 72 %.
+rows training updated, reported with it; a default run updates most of them (longer runs
+more, so their checkpoints are larger).
 """
 
 from __future__ import annotations

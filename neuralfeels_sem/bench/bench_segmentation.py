@@ -1,6 +1,6 @@
 """Camera segmentation without ground truth on simulated runs, and what the camera scene costs.
 
-Per object (seed 0, the default 10 s run at 10 fps, sensor.rgbd as configured by default
+Per object (seed 0, the first 10 s of the default run at 10 fps, sensor.rgbd as configured by default
 but with depth_noise=realsense): the segmentation's mean IoU against the simulator's object
 mask (valid-depth pixels), its worst frame, frames with no object found, and ms per frame.
 Then the RGB-D render rate of the bare camera (object and hand only, exact depth), with
