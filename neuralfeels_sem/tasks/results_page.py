@@ -25,7 +25,7 @@ from neuralfeels_sem.configs import register_configs
 from neuralfeels_sem.core.errors import DataError, UserError
 from neuralfeels_sem.eval.results_drift import flatten, group_overrides
 from neuralfeels_sem.eval.results_page import COMMAND, build_command, render, update_readme
-from neuralfeels_sem.eval.results_runs import Source, load_source
+from neuralfeels_sem.eval.results_runs import Run, Source, load_source
 from neuralfeels_sem.utils.paths import REPO_DIR
 
 
@@ -51,20 +51,15 @@ def against_today(sources: Sequence[Source]) -> list[Source]:
     """The sources with each run's `today` set (runs without a recorded config keep None)."""
     with initialize_config_dir(config_dir=str(REPO_DIR / "conf"), version_base="1.3"):
         today = defaults_composer()
-        return [
-            dataclasses.replace(
-                source,
-                runs=[
-                    dataclasses.replace(
-                        run, today=today(tuple(group_overrides(run.overrides, run.config)))
-                    )
-                    if run.config is not None
-                    else run
-                    for run in source.runs
-                ],
+
+        def judged(run: Run) -> Run:
+            if run.config is None:
+                return run
+            return dataclasses.replace(
+                run, today=today(tuple(group_overrides(run.overrides, run.config)))
             )
-            for source in sources
-        ]
+
+        return [dataclasses.replace(s, runs=[judged(r) for r in s.runs]) for s in sources]
 
 
 def write(text: str, out: Path) -> None:
