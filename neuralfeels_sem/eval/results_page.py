@@ -197,7 +197,11 @@ def material_sections(runs: Sequence[Run]) -> list[str]:
         "",
         "The majority map scores 100 % here, so these objects are reported by the classifier:",
         "accuracy on judged touches, coverage (share of touches that got a label) and accuracy",
-        "over all touches (an abstention counts as not correct).",
+        "over all touches (an abstention counts as not correct). Beside them, the share of the",
+        "scored surface the map paints in the object's one material (plain matching; a constant",
+        "map scores 100 %): below 100 where the map paints part of it another material, e.g.",
+        "from presses outside the scored regions (sockets, bases), which the classifier figures",
+        "leave out.",
         "",
     ]
     return lines + (single_material_table(single) if single else ["No single-material runs."])

@@ -187,6 +187,7 @@ def single_material_table(runs: Sequence[Run], label=None) -> list[str]:
                 mean_std(values_of(members, "classifier_accuracy.overall", 100.0)),
                 mean_std(values_of(members, "classifier_accuracy.coverage", 100.0)),
                 mean_std(values_of(members, "classifier_accuracy.accuracy_all_touches", 100.0)),
+                mean_std(values_of(members, "matching_pct")),
                 mean_std(values_of(members, "fscore_5mm"), 3),
             ]
         )
@@ -199,6 +200,7 @@ def single_material_table(runs: Sequence[Run], label=None) -> list[str]:
             "classifier acc. on judged touches %",
             "coverage %",
             "acc. over all touches %",
+            "map in the object's material %",
             "F-score @5 mm",
         ],
         rows,

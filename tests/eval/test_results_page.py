@@ -176,6 +176,7 @@ def test_single_material_objects_are_reported_by_the_classifier(
         "95.0 ± 7.1",
         "70.0 ± 14.1",
         f"67.0 ± {spread}",
+        "100.0 ± 0.0",  # the map in the object's one material
         "0.980 ± 0.000",
     ]
     assert "mean-class" not in single.split("|", 1)[1]
