@@ -15,26 +15,14 @@ from typing import Any
 
 import yaml
 
+from neuralfeels_sem.utils.nested import flatten
+
 # Keys never compared: the object group is what the run is about (a generated object's
 # seed, a custom mesh), hydra's own settings are bookkeeping, and these top-level keys
 # only name the run or decide whether pictures are drawn.
 IGNORED_PREFIXES = ("object.", "hydra.")
 IGNORED_KEYS = frozenset({"seed", "viz.plots"})
 _MISSING = object()
-
-
-def flatten(tree: Any, prefix: str = "") -> dict[str, Any]:
-    """{'a.b': leaf} for a nested dict; lists are leaves."""
-    if not isinstance(tree, dict):
-        return {prefix: tree} if prefix else {}
-    out: dict[str, Any] = {}
-    for key, value in tree.items():
-        name = f"{prefix}.{key}" if prefix else str(key)
-        if isinstance(value, dict):
-            out.update(flatten(value, name))
-        else:
-            out[name] = value
-    return out
 
 
 def same_value(a: Any, b: Any) -> bool:
@@ -57,11 +45,12 @@ def parse_override(value: str) -> Any:
 
 
 def show(value: Any) -> str:
+    """A config value as an override writes it."""
     if isinstance(value, list | tuple):
         return "[" + ",".join(show(v) for v in value) + "]"
-    return (
-        "null" if value is None else str(value).lower() if isinstance(value, bool) else str(value)
-    )
+    if value is None:
+        return "null"
+    return str(value).lower() if isinstance(value, bool) else str(value)
 
 
 def compared(key: str) -> bool:
@@ -98,5 +87,7 @@ def group_overrides(overrides: dict[str, str], recorded: dict | None) -> list[st
     return [
         f"{key}={value}"
         for key, value in sorted(overrides.items())
-        if key not in leaves and not key.startswith("hydra") and key not in ("launcher",)
+        # launcher picks only hydra's own launcher config: nothing to compare, and composing
+        # it would need the launcher's plugin
+        if key not in leaves and not key.startswith("hydra") and key != "launcher"
     ]

@@ -40,7 +40,8 @@ def pose_runs(source: Source) -> tuple[list[Run], list[Run]]:
 
 def partner_of(run: Run, partners: Sequence[Run], candidates: Sequence[Run]) -> Run | None:
     """The `pose=gt` run to compare with: the source's run with the same other settings,
-    object and seed, else the default-config run of the object and seed."""
+    object and seed, else the run of the same object, seed and other settings among the
+    page's runs (its `mapping.pose` at today's default)."""
     rest = {k: v for k, v in run.setting.items() if k != POSE_KEY}
     for other in partners:
         same = {k: v for k, v in other.setting.items() if k != POSE_KEY} == rest

@@ -3,7 +3,7 @@
 from __future__ import annotations
 
 import math
-from collections.abc import Iterable, Sequence
+from collections.abc import Callable, Iterable, Sequence
 from typing import Any
 
 from neuralfeels_sem.eval.aggregate import mean_and_std
@@ -172,7 +172,9 @@ def multi_material_table(runs: Sequence[Run]) -> list[str]:
     )
 
 
-def single_material_table(runs: Sequence[Run], label=None) -> list[str]:
+def single_material_table(
+    runs: Sequence[Run], label: Callable[[Run], str] | None = None
+) -> list[str]:
     """Classifier figures per object (or per `label(run)`, e.g. a setting) and oracles."""
     first = "object" if label is None else "setting"
     label = label or (lambda r: f"`{r.object}`")

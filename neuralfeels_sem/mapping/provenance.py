@@ -13,6 +13,7 @@ import numpy as np
 
 from neuralfeels_sem.core.errors import ConfigError
 from neuralfeels_sem.fields.semantic_field import SemanticFieldConfig
+from neuralfeels_sem.utils.nested import flatten
 
 # Keys an older `model` config carried that are not model settings (ignored when comparing,
 # so checkpoints written before they were dropped still resume): Hydra's instantiate keys,
@@ -31,16 +32,13 @@ def object_hash(obj) -> str:
 
 
 def flat_settings(config: dict, prefix: str = "model") -> dict:
-    """`{"sdf": {"hidden_dim": 64}}` -> `{"model.sdf.hidden_dim": 64}`, minus non-settings."""
-    flat = {}
-    for key, value in config.items():
-        if key in NOT_MODEL_SETTINGS:
-            continue
-        if isinstance(value, dict):
-            flat.update(flat_settings(value, f"{prefix}.{key}"))
-        else:
-            flat[f"{prefix}.{key}"] = value
-    return flat
+    """`{"sdf": {"hidden_dim": 64}}` -> `{"model.sdf.hidden_dim": 64}`, minus non-settings
+    (a key named in NOT_MODEL_SETTINGS at any depth, with everything under it)."""
+    return {
+        key: value
+        for key, value in flatten(config, prefix).items()
+        if not set(key[len(prefix) + 1 :].split(".")) & set(NOT_MODEL_SETTINGS)
+    }
 
 
 @dataclass(frozen=True)

@@ -23,9 +23,10 @@ from omegaconf import OmegaConf
 
 from neuralfeels_sem.configs import register_configs
 from neuralfeels_sem.core.errors import DataError, UserError
-from neuralfeels_sem.eval.results_drift import flatten, group_overrides
+from neuralfeels_sem.eval.results_drift import group_overrides
 from neuralfeels_sem.eval.results_page import COMMAND, build_command, render, update_readme
 from neuralfeels_sem.eval.results_runs import Run, Source, load_source
+from neuralfeels_sem.utils.nested import flatten
 from neuralfeels_sem.utils.paths import REPO_DIR
 
 

@@ -11,12 +11,12 @@ from omegaconf import OmegaConf
 
 from neuralfeels_sem.eval.results_drift import (
     drift,
-    flatten,
     group_overrides,
     redundant,
     same_value,
     show,
 )
+from neuralfeels_sem.utils.nested import flatten
 from tests.eval.test_results_page import cells, generate, run_metrics, section
 from tests.helpers import compose_config
 from tests.viz.test_sweep_plots import write_job
