@@ -91,7 +91,7 @@ FIGURES: tuple[tuple[str, str, str, str], ...] = (
     ("mapper", "steps_per_s_by_threads.2.steps_per_s", "mapper step, 2 threads", "steps/s"),
     ("mapper", "steps_per_s_by_threads.1.step_cpu_ms", "mapper step CPU, 1 thread", "ms"),
     ("mapper", "steps_per_s_by_threads.2.step_cpu_ms", "mapper step CPU, 2 threads", "ms"),
-    ("mapper", "default_run.realtime_factor", "default run (3 s): sensor time / loop time", "x"),
+    ("mapper", "default_run.realtime_factor", "default run: sensor time / loop time", "x"),
     ("mapper", "frame_points_ms", "mapper frame points (perception)", "ms/frame"),
     ("mapper", "add_frame_per_s", "mapper frames (points + steps)", "frames/s"),
     ("pose", "known_shape.ms_per_frame", "pose tracking against the true shape", "ms/frame"),

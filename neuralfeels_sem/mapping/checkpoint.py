@@ -12,6 +12,7 @@ mapping/checkpoint_codec.py says: exact while that fits 40 MB, else compact.
 
 from __future__ import annotations
 
+import copy
 import os
 import warnings
 from pathlib import Path
@@ -19,7 +20,7 @@ from pathlib import Path
 import torch
 
 from neuralfeels_sem.core.errors import ConfigError, DataError
-from neuralfeels_sem.mapping.checkpoint_codec import INIT_KEY, decode, encode
+from neuralfeels_sem.mapping.checkpoint_codec import INIT_KEY, compress, decode, take
 from neuralfeels_sem.mapping.field_init import adopt_init_state
 from neuralfeels_sem.mapping.mapper import OnlineMapper
 from neuralfeels_sem.mapping.provenance import Provenance, differing_settings
@@ -50,16 +51,36 @@ def save_checkpoint(
 ) -> None:
     """Write `path` atomically. `extra` and `model_config` must hold plain values only;
     `storage`: auto, exact or compact, how the hash tables are stored (checkpoint_codec.py)."""
-    path = Path(path)
-    payload = {
+    write_checkpoint(
+        path, take_checkpoint(mapper, frame_index, extra, model_config, provenance, storage)
+    )
+
+
+def take_checkpoint(
+    mapper: OnlineMapper,
+    frame_index: int,
+    extra: dict | None = None,
+    model_config: dict | None = None,
+    provenance: Provenance | None = None,
+    storage: str = "auto",
+) -> dict:
+    """A copy of everything the checkpoint holds, taken now; `write_checkpoint` may write it
+    from another thread while the mapper trains on (CheckpointWriter)."""
+    return {
         "version": FORMAT_VERSION,
         "frame_index": int(frame_index),
         "signature": field_signature(mapper),
-        "model_config": model_config,
+        "model_config": copy.deepcopy(model_config),
         "provenance": provenance.to_dict() if provenance is not None else None,
-        "mapper": encode(mapper.state_dict(), mapper.field, mapper.optimizer, storage),
-        "extra": dict(extra or {}),
+        "mapper": take(mapper.state_dict(), mapper.field, mapper.optimizer, storage),
+        "extra": copy.deepcopy(dict(extra or {})),
     }
+
+
+def write_checkpoint(path: str | Path, taken: dict) -> None:
+    """Pack the tables of a `take_checkpoint` copy and write it to `path` atomically."""
+    path = Path(path)
+    payload = {**taken, "mapper": compress(taken["mapper"])}
     tmp = path.with_name(path.name + ".tmp")
     path.parent.mkdir(parents=True, exist_ok=True)
     with open(tmp, "wb") as f:

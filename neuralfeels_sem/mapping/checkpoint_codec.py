@@ -19,6 +19,7 @@ else `compact`. Measured on the default run (docs/usage.md, bench_checkpoint.py)
 
 from __future__ import annotations
 
+import copy
 import hashlib
 import warnings
 
@@ -36,16 +37,26 @@ EXACT_LIMIT_BYTES = 40_000_000
 MIN_PACKED_ROWS = 4096
 PACKED_KEY = "packed_tables"
 INIT_KEY = "init_rng_state"
+_SELECTED_KEY = "selected_tables"  # take() -> compress(), never written
 
 
 def encode(state: dict, field: nn.Module, optimizer: torch.optim.Optimizer, storage: str) -> dict:
     """`state` (an OnlineMapper.state_dict() of `field` trained by `optimizer`) with every
     large table and its moments packed; the result loads back through `decode`."""
+    return compress(take(state, field, optimizer, storage))
+
+
+def take(state: dict, field: nn.Module, optimizer: torch.optim.Optimizer, storage: str) -> dict:
+    """The first half of `encode`, on the thread that trains the field: `state` copied
+    (the large tables only in their updated rows, as `_pack` stores them), with every
+    decision that reads the live field made. `compress` may then run on another thread
+    while training goes on: it reads nothing the optimiser writes."""
     if storage not in STORAGES:
         raise ValueError(f"checkpoint storage {storage!r}: use one of {STORAGES}")
     tables = _table_parameters(field, optimizer, state["optimizer"]["state"])
     if not tables:
-        return state
+        return copy.deepcopy(state)
+    # initial_state forks torch's global random stream: it must run here, not in a worker.
     init = initial_state(field)
     updated = {name: _updated_rows(state["optimizer"]["state"][i]) for name, i in tables.items()}
     replayed = {
@@ -59,22 +70,25 @@ def encode(state: dict, field: nn.Module, optimizer: torch.optim.Optimizer, stor
             else "compact"
         )
     packed_field, packed_optimizer = dict(state["field"]), _copy_optimizer(state["optimizer"])
-    packed = {}
+    selected = {}
     for name, index in tables.items():
         table = packed_field.pop(name)
         moments = packed_optimizer["state"][index]
-        packed[name] = _pack(table, moments, updated[name], replayed[name], storage)
-        packed[name]["param_index"] = index
+        selected[name] = _select(table, moments, updated[name], replayed[name], storage)
+        selected[name]["param_index"] = index
         for key in ("moments", "exp_avg", "exp_avg_sq"):
             moments.pop(key, None)
     rng = init_rng_state(field) if any(replayed.values()) else None
-    return {
-        **state,
-        "field": packed_field,
-        "optimizer": packed_optimizer,
-        PACKED_KEY: packed,
-        INIT_KEY: rng,
-    }
+    rest = copy.deepcopy({**state, "field": packed_field, "optimizer": packed_optimizer})
+    return {**rest, _SELECTED_KEY: selected, INIT_KEY: rng}
+
+
+def compress(taken: dict) -> dict:
+    """The second half of `encode`: pack the rows `take` selected (the costly part)."""
+    if _SELECTED_KEY not in taken:
+        return taken
+    rest = {k: v for k, v in taken.items() if k != _SELECTED_KEY}
+    return {**rest, PACKED_KEY: {n: _pack(e) for n, e in taken[_SELECTED_KEY].items()}}
 
 
 def decode(state: dict, field: nn.Module, source: str) -> dict:
@@ -146,7 +160,9 @@ def _digest(rows: Tensor) -> str:
     return hashlib.sha256(rows.contiguous().numpy().tobytes()).hexdigest()[:16]
 
 
-def _pack(table: Tensor, moments: dict, updated: Tensor, replayed: bool, storage: str) -> dict:
+def _select(table: Tensor, moments: dict, updated: Tensor, replayed: bool, storage: str) -> dict:
+    """Copies of what `_pack` stores of one table: its updated rows and their moments, and
+    its other rows (only their digest when `replayed`)."""
     table = table.detach().cpu()
     if "moments" in moments:  # one masked copy of both moments, then the halves
         pair = moments["moments"].cpu()[updated]
@@ -154,14 +170,31 @@ def _pack(table: Tensor, moments: dict, updated: Tensor, replayed: bool, storage
     else:
         m, v = (t.cpu()[updated] for t in _moments(moments))
     rest = table[~updated]
-    entry = {
+    return {
         "storage": storage,
         "shape": list(table.shape),
-        "updated": pack_planes(torch.from_numpy(np.packbits(updated.numpy()))),
+        "updated": updated.clone(),
         "layout": "moments" if "moments" in moments else "exp_avg",
         "untouched_digest": _digest(rest),
-        "untouched": None if replayed else _narrow(rest, storage),
-        "table": _narrow(table[updated], storage),
+        "untouched": None if replayed else rest,
+        "table": table[updated],
+        "m": m,
+        "v": v,
+    }
+
+
+def _pack(selected: dict) -> dict:
+    """One table's entry as the checkpoint stores it (module docstring)."""
+    storage, m, v = selected["storage"], selected["m"], selected["v"]
+    rest = selected["untouched"]
+    entry = {
+        **{
+            k: selected[k]
+            for k in ("storage", "shape", "layout", "untouched_digest", "param_index")
+        },
+        "updated": pack_planes(torch.from_numpy(np.packbits(selected["updated"].numpy()))),
+        "untouched": None if rest is None else _narrow(rest, storage),
+        "table": _narrow(selected["table"], storage),
     }
     if storage == "exact":
         entry.update({"m": m, "v": v})

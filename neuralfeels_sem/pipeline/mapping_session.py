@@ -8,9 +8,10 @@ observers. At sensor.pace=offline every frame is mapped, in order, as by a seque
 loop; at realtime the frames come at the sensor's clock, the mapper takes the newest one,
 drops any due more than `max_lag_s` ago and counts them (pace.py), and runs single steps
 while no new frame has come. Every `every_k_frames` frames (and on the last) the field is
-scored, every len/`progression_snapshots` frames a progression snapshot is written, every
-`checkpoint_every` frames checkpoint.pt; these read the field, so they run here, between
-steps. A run resumed from a checkpoint skips the frames it already holds and continues
+scored and every len/`progression_snapshots` frames a progression snapshot is written, on a
+copy of the field by a worker thread (background_eval.py); every `checkpoint_every` frames
+the mapper's state is copied here, between steps, and written by another worker
+(checkpoint_writer.py). So the mapper's thread only pays for the copies. A run resumed from a checkpoint skips the frames it already holds and continues
 where it stopped, with the scorer's curve, the pose source's state and the earlier
 segments' frame counts and wall times restored. SIGINT or SIGTERM stops the loop after
 the frame in progress (the result is then marked partial); a producer that fails ends
@@ -33,11 +34,12 @@ from tqdm import tqdm
 from neuralfeels_sem.core.errors import NoDataError
 from neuralfeels_sem.core.frame import Frame
 from neuralfeels_sem.eval.run_scorer import RunScorer
-from neuralfeels_sem.mapping.checkpoint import load_checkpoint, save_checkpoint
+from neuralfeels_sem.mapping.checkpoint import load_checkpoint, take_checkpoint
 from neuralfeels_sem.mapping.mapper import OnlineMapper
 from neuralfeels_sem.mapping.pose_source import PoseSource
 from neuralfeels_sem.mapping.provenance import Provenance
 from neuralfeels_sem.pipeline.background_eval import BackgroundEval
+from neuralfeels_sem.pipeline.checkpoint_writer import CheckpointWriter
 from neuralfeels_sem.pipeline.interrupts import Interrupted, StopOnSignal
 from neuralfeels_sem.pipeline.observers import FrameObserver
 from neuralfeels_sem.pipeline.pace import PerceivedFrame, StreamEnd
@@ -104,7 +106,8 @@ class MappingSession:
         self.segment = Segment()
         self.last_index = -1
         self.failure: BaseException | None = None  # the producer's error, if it failed
-        self.background: BackgroundEval | None = None  # realtime: scoring off the mapper's path
+        self.background: BackgroundEval | None = None  # scoring off the mapper's path
+        self.writer: CheckpointWriter | None = None  # checkpoint writes off the mapper's path
         self.stop = StopOnSignal(out)
         self.checkpoint_path = out / "checkpoint.pt"
         self.snapshots_dir = out / "progression"
@@ -121,16 +124,21 @@ class MappingSession:
         baseline = self._floors()
         self.last_index = self._resume(resume) if resume else -1
         frame_period = float(getattr(sensor, "frame_period_s", 0.0))
-        with self.stop:
-            wall_start = time.perf_counter()
-            try:
-                self._loop(sensor, wall_start)
-            finally:
-                for observer in self.observers:
-                    observer.close()
-            self.segment.wall_s = time.perf_counter() - wall_start
-            self.segment.partial = self.stop.requested or self.failure is not None
-            scores = self._finish(baseline)
+        self.writer = CheckpointWriter(self.checkpoint_path)
+        try:
+            with self.stop:
+                wall_start = time.perf_counter()
+                try:
+                    self._loop(sensor, wall_start)
+                finally:
+                    for observer in self.observers:
+                        observer.close()
+                self.segment.wall_s = time.perf_counter() - wall_start
+                self.segment.partial = self.stop.requested or self.failure is not None
+                scores = self._finish(baseline)
+        finally:
+            writer, self.writer = self.writer, None
+            writer.close()
         totals = run_totals([*self.earlier_segments, self.segment], frame_period)
         return {
             **scores,
@@ -188,8 +196,7 @@ class MappingSession:
         )
         bar = tqdm(total=total, desc="map", unit="frame", dynamic_ncols=True)
         bar.update(self.last_index + 1)
-        if sensor.pace == "realtime":
-            self.background = BackgroundEval(self.scorer, self._write_snapshot)
+        self.background = BackgroundEval(self.scorer, self._write_snapshot)
         producer.start()
         try:
             while not self.stop.requested:
@@ -298,18 +305,11 @@ class MappingSession:
         self.segment.wall_s = time.perf_counter() - wall_start
         score = crossed(self.settings.every_k_frames) or is_last
         snapshot = crossed(snapshot_every) or is_last
-        if self.background is not None and (score or snapshot):
+        if score or snapshot:
             field_T_gt = self.pose_source.field_T_gt_object()
             self.background.submit(
                 self.mapper.field, frame.index, frame.time_s, field_T_gt, score, snapshot
             )
-        elif score or snapshot:
-            if score:
-                self._show_scores(
-                    [(frame.index, frame.time_s, self._score(frame.index, frame.time_s))], bar
-                )
-            if snapshot:
-                self._snapshot(frame.time_s, frame.index)
         every = self.settings.checkpoint_every
         # Realtime maps a frame now and then: a checkpoint every `every` frames mapped.
         if every and (self.segment.frames % every == 0 if realtime else crossed(every)):
@@ -331,15 +331,16 @@ class MappingSession:
         field_T_gt = self.pose_source.field_T_gt_object()
         return self.scorer.score(self.mapper.field, frame_index, time_s, field_T_gt)
 
-    def _checkpoint(self) -> None:
-        """checkpoint.pt after `self.last_index`, with the segments up to now."""
+    def _checkpoint(self, wait: bool = False) -> None:
+        """checkpoint.pt after `self.last_index`, with the segments up to now: the state is
+        copied now and written by the writer (`wait`: return once it is on disk)."""
         extra = {
             "scorer": self.scorer.state(),
             "pose": self.pose_source.state(),
             "segments": [s.to_dict() for s in (*self.earlier_segments, self.segment)],
         }
-        save_checkpoint(
-            self.checkpoint_path,
+        self.writer.wait()  # one copy of the state in flight at a time
+        taken = take_checkpoint(
             self.mapper,
             self.last_index,
             extra,
@@ -347,6 +348,9 @@ class MappingSession:
             self.provenance,
             storage=self.settings.checkpoint_storage,
         )
+        self.writer.submit(taken)
+        if wait:
+            self.writer.wait()
 
     def _snapshot(self, time_s: float, frame_index: int) -> None:
         """Progression snapshots go to disk at once, so a resumed run still has the early ones."""
@@ -378,7 +382,7 @@ class MappingSession:
                 f"the field received no data in {trained_on['frames']} frames (no camera or tactile points); "
                 "check that the object is in view and the fingers touch it (sensor config)"
             )
-        self._checkpoint()  # first: a second signal must not lose the frames
+        self._checkpoint(wait=True)  # first: a second signal must not lose the frames
         curve = self.scorer.curve
         if not curve or curve[-1][0] != self.last_index:
             self._score(self.last_index, self.segment.last_time_s or 0.0)

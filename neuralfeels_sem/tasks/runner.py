@@ -17,6 +17,7 @@ from collections.abc import Iterator
 from contextlib import contextmanager
 from contextvars import ContextVar
 from pathlib import Path
+from typing import NoReturn
 
 from hydra.core.hydra_config import HydraConfig
 from hydra.errors import InstantiationException
@@ -91,6 +92,27 @@ def _close_progress_bars() -> None:
         bar.close()
 
 
+def _interruption_behind(exc: BaseException) -> BaseException | None:
+    """The KeyboardInterrupt or Interrupted that caused `exc` (through its chain), if any."""
+    seen = set()
+    while exc is not None and id(exc) not in seen:
+        if isinstance(exc, (KeyboardInterrupt, Interrupted)):
+            return exc
+        seen.add(id(exc))
+        exc = exc.__cause__ or exc.__context__
+    return None
+
+
+def _end_interrupted(exc: BaseException) -> NoReturn:
+    """One line and the signal's exit code (130 for Ctrl-C)."""
+    if isinstance(exc, Interrupted):
+        log.debug("interrupted: %s", exc)
+        print(exc, file=sys.stderr)
+        sys.exit(exc.exit_code)
+    print(f"interrupted (SIGINT); outputs written so far are in {output_dir()}", file=sys.stderr)
+    sys.exit(130)
+
+
 def run_task(cfg: DictConfig) -> float | None:
     _on_signals()
     try:
@@ -116,15 +138,15 @@ def run_task(cfg: DictConfig) -> float | None:
         _close_progress_bars()
         print(f"error: {exc}", file=sys.stderr)
         sys.exit(exc.exit_code)
-    except Interrupted as exc:
-        log.debug("interrupted: %s", exc)
-        print(exc, file=sys.stderr)
-        sys.exit(exc.exit_code)
-    except KeyboardInterrupt:
-        print(
-            f"interrupted (SIGINT); outputs written so far are in {output_dir()}", file=sys.stderr
-        )
-        sys.exit(130)
+    except (Interrupted, KeyboardInterrupt) as exc:
+        _end_interrupted(exc)
+    except Exception as exc:
+        # A signal inside a lazy import (mujoco's, pyrender's) surfaces as the ImportError
+        # it caused: still an interruption, not a failure.
+        interruption = _interruption_behind(exc)
+        if interruption is None:
+            raise
+        _end_interrupted(interruption)
     objective = cfg.task.get("objective") if hasattr(cfg.task, "get") else None
     if objective and isinstance(result, dict) and objective in result:
         return float(result[objective])

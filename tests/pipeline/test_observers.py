@@ -44,13 +44,13 @@ def test_an_observer_sees_every_frame_and_scoring_pass(tmp_path, monkeypatch) ->
     import neuralfeels_sem.pipeline.mapping_session as session_module
 
     storages = []
-    save = session_module.save_checkpoint
+    take = session_module.take_checkpoint
 
-    def recording_save(*args, storage="auto", **kwargs):
+    def recording_take(*args, storage="auto", **kwargs):
         storages.append(storage)
-        return save(*args, storage=storage, **kwargs)
+        return take(*args, storage=storage, **kwargs)
 
-    monkeypatch.setattr(session_module, "save_checkpoint", recording_save)
+    monkeypatch.setattr(session_module, "take_checkpoint", recording_take)
     cfg = compose_config([*SMALL, "mapping.checkpoint_storage=exact"])
     obj = instantiate(cfg.object)
     sensor = build_sensor(cfg.sensor, obj, list(cfg.materials))

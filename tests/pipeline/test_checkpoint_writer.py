@@ -1,0 +1,62 @@
+"""Checkpoints written by a worker while the mapper trains on (pipeline/checkpoint_writer.py)."""
+
+from __future__ import annotations
+
+import threading
+
+import pytest
+import torch
+
+import neuralfeels_sem.pipeline.checkpoint_writer as writer_module
+from neuralfeels_sem.mapping.checkpoint import load_checkpoint, take_checkpoint
+from neuralfeels_sem.pipeline.checkpoint_writer import CheckpointWriter
+from tests.mapping.test_checkpoint import FRAMES, feed, make_mapper
+
+
+@pytest.mark.parametrize("storage", ["exact", "compact"])
+def test_a_checkpoint_written_behind_holds_the_state_it_was_taken_with(
+    tmp_path, monkeypatch, storage: str
+) -> None:
+    """The worker writes only after training has gone on; resuming from the file still
+    continues the run of the moment it was taken (exactly, when stored exact)."""
+    reference = make_mapper()
+    feed(reference, FRAMES)
+    trained_on = threading.Event()
+    write = writer_module.write_checkpoint
+
+    def write_later(path, taken) -> None:
+        assert trained_on.wait(timeout=60)
+        write(path, taken)
+
+    monkeypatch.setattr(writer_module, "write_checkpoint", write_later)
+    mapper = make_mapper()
+    feed(mapper, FRAMES[:3])
+    path = tmp_path / "checkpoint.pt"
+    writer = CheckpointWriter(path)
+    writer.submit(take_checkpoint(mapper, 2, {"note": [1]}, storage=storage))
+    feed(mapper, FRAMES[3:])  # changes every table row and moment the copy holds
+    trained_on.set()
+    writer.close()
+
+    resumed = make_mapper(init_seed=7)
+    assert load_checkpoint(path, resumed) == {"frame_index": 2, "extra": {"note": [1]}}
+    feed(resumed, FRAMES[3:])
+    for (name, a), (_, b) in zip(
+        reference.field.state_dict().items(), resumed.field.state_dict().items()
+    ):
+        if storage == "exact":
+            assert torch.equal(a, b), name
+        else:  # compact moments are 8-bit codes: close, not equal
+            assert torch.allclose(a, b, atol=1e-3), name
+    assert reference.trained_on == resumed.trained_on
+
+
+def test_a_failed_write_is_raised_on_the_mapper_side(tmp_path) -> None:
+    (tmp_path / "a_file").write_text("not a directory")
+    writer = CheckpointWriter(tmp_path / "a_file" / "checkpoint.pt")
+    mapper = make_mapper()
+    feed(mapper, FRAMES[:2])
+    writer.submit(take_checkpoint(mapper, 1))
+    with pytest.raises(OSError):
+        writer.wait()
+    writer.close()  # the error was raised once; the worker stops cleanly
