@@ -31,6 +31,7 @@ from neuralfeels_sem.mapping.frame_points import CAMERA_MASKS, PointExtractor
 from neuralfeels_sem.mapping.memory import MapMemory
 from neuralfeels_sem.mapping.objective import TERMS, MapperObjective
 from neuralfeels_sem.mapping.rng_state import capture_rng, restore_rng
+from neuralfeels_sem.mapping.step_policy import STEPS_POLICIES, steps_for, surprise
 from neuralfeels_sem.perception.camera_segmentation import SegmentationConfig
 from neuralfeels_sem.perception.tactile_depth import TactileDepth, TactileDepthConfig
 from neuralfeels_sem.perception.touch import TouchLabel
@@ -44,6 +45,11 @@ class MapperConfig:
 
     num_classes: int = len(DEFAULT_MATERIALS)  # conf: ${len:${materials}}; must match the field
     steps_per_frame: int = 5
+    # fixed: steps_per_frame on every frame; surprise: min_steps_per_frame up to
+    # steps_per_frame by how much of the new frame the field does not explain yet
+    # (mapping/step_policy.py).
+    steps_policy: str = "fixed"
+    min_steps_per_frame: int = 1
     warmup_steps: int = 50  # steps on the first frame with data
     camera_points_per_frame: int = 4096  # stored per camera keyframe
     tactile_points_per_touch: int = 128  # stored per touch (with replacement for small patches)
@@ -90,6 +96,15 @@ class MapperConfig:
     tactile_depth: TactileDepthConfig = field(default_factory=TactileDepthConfig)
 
     def __post_init__(self) -> None:
+        if self.steps_policy not in STEPS_POLICIES:
+            raise ValueError(
+                f"mapping.mapper.steps_policy={self.steps_policy!r}: use one of {', '.join(STEPS_POLICIES)}"
+            )
+        if not 1 <= self.min_steps_per_frame <= self.steps_per_frame:
+            raise ValueError(
+                f"mapping.mapper.min_steps_per_frame={self.min_steps_per_frame} must be in "
+                f"[1, steps_per_frame={self.steps_per_frame}]"
+            )
         if self.camera_mask not in CAMERA_MASKS:
             raise ValueError(
                 f"mapping.mapper.camera_mask={self.camera_mask!r}: use one of {', '.join(CAMERA_MASKS)}"
@@ -203,9 +218,9 @@ class OnlineMapper:
         world_T_object: np.ndarray | None = None,
         steps: int | None = None,
     ) -> dict[str, float]:
-        """Ingest one frame, then run `steps` optimiser steps (None: steps_per_frame, the
-        first time warmup_steps; a realtime stream passes steps_per_frame, since the world
-        does not wait for a warm-up)."""
+        """Ingest one frame, then run `steps` optimiser steps (None: as steps_policy says,
+        the first time warmup_steps; a realtime stream passes steps_per_frame, since the
+        world does not wait for a warm-up)."""
         pose = frame.world_T_object if world_T_object is None else world_T_object
         if not np.isfinite(pose).all():
             raise NumericalError(
@@ -221,11 +236,18 @@ class OnlineMapper:
         if not self.memory.has_data:
             return dict.fromkeys(LOSS_KEYS, 0.0)
         if steps is None:
-            steps = self.config.steps_per_frame
-            if not self.log.warmed_up:
-                steps = max(steps, self.config.warmup_steps)
+            steps = self._policy_steps(points, touch_labels or {})
         self.log.warmed_up = True
         return self.optimize(steps)
+
+    def _policy_steps(self, points: dict[str, np.ndarray], labels: Mapping[str, TouchLabel]) -> int:
+        config = self.config
+        if not self.log.warmed_up:
+            return max(config.steps_per_frame, config.warmup_steps)
+        if config.steps_policy == "fixed":
+            return config.steps_per_frame
+        share = surprise(self.field, points, labels, config.truncation, self.device)
+        return steps_for(share, config.min_steps_per_frame, config.steps_per_frame)
 
     @property
     def trained_on(self) -> dict:
