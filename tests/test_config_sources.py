@@ -160,7 +160,10 @@ def settings(schema, prefix: str = "") -> set[str]:
 
 def test_every_mapper_setting_is_read_by_the_mapper_or_its_parts() -> None:
     read: set[str] = set()
-    config = MapperConfig(num_classes=2, camera_rays=16, tactile_rays=8, material_points=8)
+    # surprise: the policy that reads min_steps_per_frame too
+    config = MapperConfig(
+        num_classes=2, camera_rays=16, tactile_rays=8, material_points=8, steps_policy="surprise"
+    )
     torch.manual_seed(0)
     mapper = OnlineMapper(
         Recording(config, read),
@@ -168,8 +171,9 @@ def test_every_mapper_setting_is_read_by_the_mapper_or_its_parts() -> None:
         functools.partial(FieldAdam, lr=1e-3),
         "cpu",
     )
-    frame, labels = sphere_frames(1, touches_per_frame=2)[0]
-    mapper.add_frame(frame, labels)  # some settings are read per frame
+    frames = sphere_frames(2, touches_per_frame=2)
+    for frame, labels in frames:  # the warm-up frame, then one the steps policy sizes
+        mapper.add_frame(frame, labels)
     assert settings(MapperConfig) - read == set()
 
 
