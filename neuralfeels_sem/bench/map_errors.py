@@ -1,0 +1,125 @@
+"""Where finished runs' material maps are wrong, and why (eval/error_sources.py), per run.
+
+Reads each run directory's config and final checkpoint (nothing is re-run), queries the
+field at the run's matching samples and charges every wrong sample to its ground-truth
+region's case: never pressed, pressed without a label, labelled only wrongly, or labelled
+rightly (border and extrapolation errors). Prints one line per run and the totals, and
+writes the full records as JSON.
+
+    python -m neuralfeels_sem.bench.map_errors /work/runs/sweep/* --out errors.json
+"""
+
+from __future__ import annotations
+
+import argparse
+import json
+from pathlib import Path
+
+import numpy as np
+import torch
+from hydra import initialize_config_dir
+from hydra.utils import instantiate
+from scipy.spatial import cKDTree
+
+from neuralfeels_sem.configs import register_configs
+from neuralfeels_sem.eval.error_sources import CASES, TouchSet, error_sources
+from neuralfeels_sem.eval.matching import MatchingEvaluator
+from neuralfeels_sem.eval.uncertainty import probability_predictor
+from neuralfeels_sem.mapping.checkpoint import load_checkpoint
+from neuralfeels_sem.tasks.build import BOUND_MARGIN, build_mapper, model_config
+from neuralfeels_sem.tasks.eval import load_run_config
+from neuralfeels_sem.utils.paths import REPO_DIR
+
+
+def touch_set(mapper) -> TouchSet:
+    """The mapper's touches: points, labels, and whether the material loss used each."""
+    buffer = mapper.memory.touches
+    state = buffer.state_dict()
+    labels = np.array([int(t[0]) for t in state["labels"]], dtype=np.int64)
+    used = labels >= 0
+    if buffer.vote is not None and buffer.vote.active and used.any():
+        centroids = torch.stack([p.mean(0) for p in state["points"]])
+        kept = np.flatnonzero(used)
+        outvoted = buffer.vote.outvoted(
+            centroids[kept],
+            torch.as_tensor(labels[kept]),
+            [state["fingers"][i] for i in kept],
+            [state["frames"][i] for i in kept],
+        )
+        used[kept[outvoted.cpu().numpy()]] = False
+    points = [p.cpu().numpy().astype(np.float64) for p in state["points"]]
+    return TouchSet(points, labels, used)
+
+
+def run_errors(run_dir: Path) -> dict:
+    """The error sources of one finished mapping run (object pose: the run's ground truth)."""
+    cfg = load_run_config(run_dir)
+    obj = instantiate(cfg.object)
+    bound = BOUND_MARGIN * obj.bounds_radius
+    mapper = build_mapper(cfg, bound, torch.device("cpu"))
+    load_checkpoint(run_dir / "checkpoint.pt", mapper, model_config(cfg))
+    matching = MatchingEvaluator(obj, int(cfg.eval.num_surface_samples), int(cfg.eval.seed))
+    probs = probability_predictor(mapper.field)(matching.points)
+    touches = touch_set(mapper)
+    report = error_sources(obj, matching.points, matching.faces, probs.argmax(axis=1), touches)
+    metrics_file = run_dir / "metrics.json"
+    metrics = json.loads(metrics_file.read_text()) if metrics_file.is_file() else {}
+    return {
+        "run": str(run_dir),
+        "object": obj.name,
+        "generation": getattr(obj, "generation", None),
+        "matching_mean_class_pct": metrics.get("matching_mean_class_pct"),
+        "nearest_press_mean_class_pct": nearest_press_map(matching, touches),
+        **report,
+    }
+
+
+def nearest_press_map(matching: MatchingEvaluator, touches: TouchSet) -> float | None:
+    """Mean-class matching of the map that gives each sample the label of the nearest
+    contact point of a press the material loss used (a Voronoi map of the presses)."""
+    used = [(p, lab) for p, lab, u in zip(touches.points, touches.labels, touches.used) if u]
+    if not used:
+        return None
+    points = np.concatenate([p for p, _ in used])
+    labels = np.concatenate([np.full(len(p), lab) for p, lab in used])
+    nearest = cKDTree(points).query(matching.points)[1]
+    return matching.evaluate_labels(labels[nearest])["matching_mean_class_pct"]
+
+
+def summary_line(row: dict) -> str:
+    lost = row["by_case"]
+    parts = " ".join(f"{c}={lost[c]['mean_class_points_lost']:5.1f}" for c in CASES)
+    family = (row.get("generation") or {}).get("family", "")
+    voronoi = row["nearest_press_mean_class_pct"] or float("nan")
+    return (
+        f"{row['object']:>14} {family:>11} mean-class {row['matching_mean_class_pct'] or float('nan'):5.1f}"
+        f" (nearest press {voronoi:5.1f})  lost: {parts}"
+    )
+
+
+def main(argv: list[str] | None = None) -> None:
+    parser = argparse.ArgumentParser(description=__doc__.splitlines()[0])
+    parser.add_argument("runs", nargs="+", type=Path, help="run directories (task=map)")
+    parser.add_argument("--out", type=Path, default=None, help="write every record as JSON")
+    args = parser.parse_args(argv)
+    rows = []
+    register_configs()
+    with initialize_config_dir(config_dir=str(REPO_DIR / "conf"), version_base="1.3"):
+        for run_dir in args.runs:
+            if not (run_dir / "checkpoint.pt").is_file():
+                continue
+            rows.append(run_errors(run_dir))
+            print(summary_line(rows[-1]), flush=True)
+    totals = {
+        c: float(np.mean([r["by_case"][c]["mean_class_points_lost"] for r in rows])) for c in CASES
+    }
+    print(
+        "mean points of mean-class matching lost per run:",
+        {c: round(v, 1) for c, v in totals.items()},
+    )
+    if args.out is not None:
+        args.out.write_text(json.dumps({"mean_points_lost": totals, "runs": rows}, indent=1))
+
+
+if __name__ == "__main__":
+    main()
