@@ -9,6 +9,8 @@ from setuptools import find_packages, setup
 
 INSTALL_REQUIRES = [
     "numpy>=1.26,<3",
+    # Fused CPU kernels of the hash grid and its optimiser (fields/hash_kernels.py).
+    "numba>=0.60",
     "scipy>=1.11",
     "hydra-core==1.3.8",
     "omegaconf>=2.3,<2.4",

@@ -10,6 +10,11 @@ interpolated from the 8 corners of the cell holding the point and concatenated o
 With `sparse_grad=True` the table's gradient is a sparse COO tensor holding only the rows
 the batch touched, so an optimiser step costs O(points), not O(table): use
 `neuralfeels_sem.fields.optim.FieldAdam` (plain torch.optim.Adam rejects sparse grads).
+
+On the CPU, float32 points that need no gradient themselves (the mapper's batches and
+every query) go through fused kernels (hash_kernels.py): the same corner rows, weights
+and features, several times less memory traffic. Points that need a gradient (the
+eikonal term, pose tracking) and every other device take the PyTorch path below.
 """
 
 from __future__ import annotations
@@ -17,10 +22,12 @@ from __future__ import annotations
 import math
 from dataclasses import dataclass
 
+import numpy as np
 import torch
 import torch.nn.functional as F
 from torch import Tensor, nn
 
+from neuralfeels_sem.fields import hash_kernels
 from neuralfeels_sem.fields.row_ops import gather_rows
 
 # Instant-NGP / tiny-cuda-nn spatial hash primes (the first is 1 for cache coherence).
@@ -108,6 +115,9 @@ class HashGridEncoding(nn.Module):
         )
         self.table = nn.Parameter(torch.empty(sum(rows), features_per_level))
         self.init_scale = config.init_scale
+        # Fused CPU kernels where they apply (see the module docstring); False forces the
+        # PyTorch path (the tests compare both).
+        self.fused_cpu = True
         self.reset_parameters()
 
     def reset_parameters(self) -> None:
@@ -169,6 +179,12 @@ class HashGridEncoding(nn.Module):
         """Points (N, 3) in [0, 1]^3 (callers clamp) -> features (N, levels * features)."""
         if x.ndim != 2 or x.shape[1] != 3:
             raise ValueError(f"x must have shape (N, 3), got {tuple(x.shape)}")
+        needs_graph = torch.is_grad_enabled() and (self.table.requires_grad or x.requires_grad)
+        if self._fused(x) and not x.requires_grad:
+            if not needs_graph:
+                return self._encode_fused(x, keep_corners=False)[0]
+            if self.sparse_grad:
+                return _FusedSparseEncode.apply(self.table, x, self)
         n = x.shape[0]
         idx, weights = self.corner_indices(x)
         idx = idx.reshape(-1)
@@ -189,6 +205,29 @@ class HashGridEncoding(nn.Module):
         # Weighted sum over the 8 corners as one batched matmul (fast forward and backward).
         out = torch.bmm(weights.reshape(n * self.num_levels, 1, 8), feats)
         return out.reshape(n, self.out_dim)
+
+    def _fused(self, x: Tensor) -> bool:
+        return (
+            self.fused_cpu
+            and x.device.type == "cpu"
+            and x.dtype == torch.float32
+            and self.table.dtype == torch.float32
+        )
+
+    def _encode_fused(self, x: Tensor, keep_corners: bool) -> tuple[Tensor, np.ndarray, np.ndarray]:
+        """Features (N, out_dim) by the fused CPU kernel, with the corner rows and weights
+        (N, L, 8) when `keep_corners` (else empty arrays)."""
+        n, shape = x.shape[0], (x.shape[0], self.num_levels, 8)
+        rows_dtype = np.int32 if self.table.shape[0] < 2**31 else np.int64
+        rows = np.empty(shape if keep_corners else (0, 0, 0), dtype=rows_dtype)
+        weights = np.empty(shape if keep_corners else (0, 0, 0), dtype=np.float32)
+        out = torch.empty(n, self.out_dim, dtype=torch.float32)
+        hash_kernels.encode(
+            x.detach().contiguous().numpy(), self.table.detach().numpy(), self._res.numpy(),
+            self._offsets.numpy(), self.num_dense_levels, 2**self.log2_table_size - 1,
+            rows, weights, out.numpy(),
+        )  # fmt: skip
+        return out, rows, weights
 
 
 def sum_rows(idx: Tensor, values: Tensor, num_rows: int) -> tuple[Tensor, Tensor]:
@@ -259,4 +298,30 @@ class _SparseInterpolate(torch.autograd.Function):
         sparse = torch.sparse_coo_tensor(
             rows[None], sums, ctx.table_shape, is_coalesced=True, check_invariants=False
         )
+        return sparse, None, None
+
+
+class _FusedSparseEncode(torch.autograd.Function):
+    """The encoding by the fused CPU kernels, with the table's gradient as a coalesced
+    sparse tensor (sorted distinct rows); for points that need no gradient themselves."""
+
+    @staticmethod
+    def forward(ctx, table: Tensor, x: Tensor, encoding: HashGridEncoding) -> Tensor:
+        out, ctx.rows, ctx.weights = encoding._encode_fused(x, keep_corners=True)
+        ctx.table_shape = table.shape
+        return out
+
+    @staticmethod
+    @torch.autograd.function.once_differentiable
+    def backward(ctx, grad: Tensor) -> tuple[Tensor, None, None]:
+        num_rows, num_features = ctx.table_shape
+        words = (num_rows + 63) // 64
+        rows, sums = hash_kernels.table_grad(
+            ctx.rows, ctx.weights, grad.to(torch.float32).contiguous().numpy(),
+            np.zeros(words, dtype=np.uint64), np.empty(words, dtype=np.int64), num_features,
+        )  # fmt: skip
+        sparse = torch.sparse_coo_tensor(
+            torch.from_numpy(rows)[None], torch.from_numpy(sums), ctx.table_shape,
+            is_coalesced=True, check_invariants=False,
+        )  # fmt: skip
         return sparse, None, None

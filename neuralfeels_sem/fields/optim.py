@@ -7,7 +7,9 @@ table's gradient is a sparse COO tensor, and FieldAdam updates only the rows it 
 a step costs O(points). Rows absent from a step keep their moments unchanged ("lazy
 Adam", as torch.optim.SparseAdam); bias correction uses the parameter's step count.
 A parameter first updated with a sparse gradient keeps its moments in one tensor
-`moments` (rows, 2, ...) (see `moments()`); others use torch Adam's state names.
+`moments` (rows, 2, ...) (see `moments()`); others use torch Adam's state names. On the
+CPU a float32 table's sparse update runs as one fused loop over its rows
+(hash_kernels.adam_rows): the same arithmetic with one pass over the rows' memory.
 
 Config: `mapping.optimizer` is an OptimizerConfig (below): `_target_: ...FieldAdam`,
 `_partial_: true`, so `instantiate` gives `factory(field.parameters())`, the same call as
@@ -24,6 +26,7 @@ from dataclasses import dataclass, field
 import torch
 from torch import Tensor
 
+from neuralfeels_sem.fields import hash_kernels
 from neuralfeels_sem.fields.row_ops import copy_rows_, gather_rows
 
 DEFAULT_BETAS = (0.9, 0.999)
@@ -68,6 +71,8 @@ class FieldAdam(torch.optim.Optimizer):
         OptimizerConfig(lr=lr, betas=list(betas), eps=eps, weight_decay=weight_decay)  # ranges
         defaults = {"lr": lr, "betas": tuple(betas), "eps": eps, "weight_decay": weight_decay}
         super().__init__(params, defaults)
+        # Fused CPU update of sparse rows where it applies; False forces the PyTorch path.
+        self.fused_cpu = True
 
     @torch.no_grad()
     def step(self, closure=None):  # noqa: ANN001 (the torch.optim signature)
@@ -97,7 +102,9 @@ class FieldAdam(torch.optim.Optimizer):
                 # Fold both bias corrections into the step size (as torch's Adam does).
                 step_size = group["lr"] * math.sqrt(1 - beta2**step) / (1 - beta1**step)
                 if p.grad.is_sparse:
-                    _sparse_update(p, p.grad, state, beta1, beta2, step_size, group)
+                    fused = self.fused_cpu and _fusable(p, state)
+                    update = _fused_sparse_update if fused else _sparse_update
+                    update(p, p.grad, state, beta1, beta2, step_size, group)
                 else:
                     _dense_update(p, p.grad, state, beta1, beta2, step_size, group)
         return loss
@@ -145,6 +152,33 @@ def _sparse_update(
     denom = v.sqrt().add_(group["eps"] * math.sqrt(1 - beta2 ** state["step"]))
     # index_copy of the updated rows: index_add_ on CPU is about 6x slower here.
     copy_rows_(p, rows, p_rows.addcdiv_(m, denom, value=-step_size))
+
+
+def _fusable(p: Tensor, state: dict) -> bool:
+    return (
+        p.device.type == "cpu"
+        and p.dtype == torch.float32
+        and p.is_contiguous()
+        and "moments" in state
+        and state["moments"].is_contiguous()
+    )
+
+
+def _fused_sparse_update(
+    p: Tensor, grad: Tensor, state: dict, beta1: float, beta2: float, step_size: float, group: dict
+) -> None:
+    """_sparse_update's arithmetic in one pass over the rows (hash_kernels.adam_rows)."""
+    rows, values = _coalesced_rows(grad)
+    if rows.numel() == 0:
+        return
+    eps = group["eps"] * math.sqrt(1 - beta2 ** state["step"])
+    hash_kernels.adam_rows(
+        p.detach().view(p.shape[0], -1).numpy(),
+        state["moments"].view(p.shape[0], 2, -1).numpy(),
+        rows.numpy(),
+        values.to(torch.float32).reshape(rows.numel(), -1).contiguous().numpy(),
+        beta1, beta2, step_size, eps, group["weight_decay"],
+    )  # fmt: skip
 
 
 def moments(state: dict) -> tuple[Tensor, Tensor]:
