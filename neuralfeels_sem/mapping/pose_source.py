@@ -21,6 +21,7 @@ import torch
 from neuralfeels_sem.core.errors import ConfigError
 from neuralfeels_sem.core.frame import Frame
 from neuralfeels_sem.core.geometry import check_pose, invert_pose, orthonormalize_pose
+from neuralfeels_sem.mapping.colour_keyframes import ColourKeyframes
 from neuralfeels_sem.mapping.pose_tracker import PoseTracker, TrackerConfig
 from neuralfeels_sem.mapping.se3 import constant_velocity
 from neuralfeels_sem.utils.atomic import atomic_write
@@ -149,6 +150,8 @@ class TrackedPose(PoseSource):
         self.reinitialised_frames = 0  # tracked only after a restart from the last pose
         self.degenerate_frames = 0  # tracked, some directions held by the motion prior
         self.track_seconds = 0.0  # wall time spent tracking (SDF evaluations dominate)
+        self.colour = ColourKeyframes(self.tracker.colour, seed)
+        self._view = None  # the current frame's colour view
 
     # ---------------------------------------------------------------- tracking
     def _sdf_fn(self, mapper: MapView):
@@ -164,14 +167,19 @@ class TrackedPose(PoseSource):
         self.kept[reason] = self.kept.get(reason, 0) + 1
 
     def estimate(self, frame: Frame, mapper: MapView) -> np.ndarray:
+        points = self._world_points(frame, mapper) if self.history else None
+        tracked = False
         if not self.history:
-            pose = np.asarray(frame.world_T_object, dtype=np.float64).copy()
+            pose, tracked = np.asarray(frame.world_T_object, dtype=np.float64).copy(), True
         elif self.name == "track" and not mapper.has_surface:
             pose = constant_velocity(self.history)
             self._keep("no surface learned yet")
         else:
-            pose = self._track(frame, mapper)
+            pose, tracked = self._track(frame, mapper, points)
         pose = orthonormalize_pose(pose)
+        if points is None and self.colour.enabled:
+            self._world_points(frame, mapper)  # the first frame: its colour view
+        self.colour.add(self._view, pose, tracked)
         self.history = (self.history + [pose])[-2:]
         self.last_estimate = pose
         self.last_frame = frame
@@ -180,25 +188,33 @@ class TrackedPose(PoseSource):
             self.curve.append([int(frame.index), float(frame.time_s), 1e3 * err])
         return pose
 
-    def _track(self, frame: Frame, mapper: MapView) -> np.ndarray:
-        """The frame's tracked pose, or the prediction when no solve fits (counted).
+    def _world_points(self, frame: Frame, mapper: MapView) -> dict[str, np.ndarray]:
+        """The frame's points per source in the world frame; remembers its colour view."""
+        points = mapper.frame_points(frame, np.eye(4))
+        self._view = self.colour.view(frame, points.get("camera"))
+        return points
+
+    def _track(
+        self, frame: Frame, mapper: MapView, points: dict[str, np.ndarray]
+    ) -> tuple[np.ndarray, bool]:
+        """The frame's tracked pose, or the prediction when no solve fits (counted), and
+        whether it was tracked.
 
         A solve from the constant-velocity prediction that does not fit (fit_check.py) or
         diverges is retried once from the last pose (no motion assumed): the prediction
         carries the last frame's motion, and a wrong one can start the solve in a wrong
-        basin. Too few points are not retried: no start can fix them.
+        basin. Too few points are not retried: no start can fix them. Colour terms against
+        earlier views (colour_keyframes.py) join both solves.
         """
         predicted = constant_velocity(self.history)
-        points = {
-            source: torch.as_tensor(p)
-            for source, p in mapper.frame_points(frame, np.eye(4)).items()
-        }
+        tensors = {source: torch.as_tensor(p) for source, p in points.items()}
         sdf_fn = self._sdf_fn(mapper)
         start = time.perf_counter()
-        pose, info = self.tracker.track(points, sdf_fn, predicted, prior=predicted)
+        terms = self.colour.terms(self._view, predicted)
+        pose, info = self.tracker.track(tensors, sdf_fn, predicted, predicted, terms)
         retried = bool(info["skipped"]) and not info["skipped"].startswith("too few points")
         if retried:
-            pose, info = self.tracker.track(points, sdf_fn, self.history[-1], prior=predicted)
+            pose, info = self.tracker.track(tensors, sdf_fn, self.history[-1], predicted, terms)
         self.track_seconds += time.perf_counter() - start
         if "inlier_share" in info:
             self.fit_curve.append(
@@ -206,11 +222,11 @@ class TrackedPose(PoseSource):
             )
         if info["skipped"]:
             self._keep(info["skipped"].split(" (")[0])
-            return predicted
+            return predicted, False
         self.tracked_frames += 1
         self.reinitialised_frames += int(retried)
         self.degenerate_frames += int(info["degenerate"])
-        return pose
+        return pose, True
 
     def _surface_points(self) -> np.ndarray:
         if self._error_points is None:

@@ -12,26 +12,37 @@ and holds directions the points cannot see (a sphere's spin).
 from __future__ import annotations
 
 import logging
-from collections.abc import Callable, Mapping
+from collections.abc import Callable, Mapping, Sequence
 from dataclasses import dataclass, field
-from typing import Literal, get_args
 
 import numpy as np
 import torch
 from torch import Tensor
 
 from neuralfeels_sem.core.geometry import check_pose, invert_pose
+from neuralfeels_sem.mapping.colour_keyframes import ColourConfig
 from neuralfeels_sem.mapping.fit_check import conditioning, fit_failure, inlier_share
+from neuralfeels_sem.mapping.residual_terms import (
+    ROBUST_LOSSES,
+    ResidualTerm,
+    robust_weights,
+    stack_terms,
+)
 from neuralfeels_sem.mapping.se3 import constant_velocity, se3_exp, se3_log
 
 log = logging.getLogger(__name__)
 
-__all__ = ["PoseTracker", "TrackerConfig", "constant_velocity", "se3_exp", "se3_log"]
+__all__ = [
+    "PoseTracker",
+    "ResidualTerm",
+    "TrackerConfig",
+    "constant_velocity",
+    "robust_weights",
+    "se3_exp",
+    "se3_log",
+]
 
 REJECTIONS_BEFORE_STOP = 4  # trial steps that raise the cost before a solve ends
-
-RobustLoss = Literal["huber", "cauchy"]
-ROBUST_LOSSES = get_args(RobustLoss)
 
 
 @dataclass
@@ -78,6 +89,7 @@ class TrackerConfig:
     min_inlier_share: float = 0.5
     min_conditioning: float = 1.0e-4
     tolerance: float = 1.0e-6  # stop when a step changes the pose less than this (m, rad)
+    colour: ColourConfig = field(default_factory=ColourConfig)  # colour_keyframes.py
     seed: int = 0
 
     def __post_init__(self) -> None:
@@ -110,21 +122,6 @@ class TrackerConfig:
             raise ValueError(
                 f"mapping.tracker.source_weights={dict(self.source_weights)} must be >= 0"
             )
-
-
-def robust_weights(r: Tensor, loss: str, scale: float) -> tuple[Tensor, Tensor]:
-    """IRLS weights w(r) and the loss rho(r) (both (N,)), with rho ~ r^2 near zero."""
-    a = r.abs()
-    if loss == "huber":
-        w = torch.where(a <= scale, torch.ones_like(a), scale / a.clamp_min(1e-12))
-        rho = torch.where(a <= scale, r * r, 2.0 * scale * a - scale * scale)
-    elif loss == "cauchy":
-        z = (r / scale) ** 2
-        w = 1.0 / (1.0 + z)
-        rho = scale * scale * torch.log1p(z)
-    else:
-        raise ValueError(f"robust loss {loss!r} is not one of {ROBUST_LOSSES}")
-    return w, rho
 
 
 @dataclass
@@ -167,6 +164,7 @@ class PoseTracker:
         self.inlier_m = float(config.inlier_m)
         self.min_inlier_share = float(config.min_inlier_share)
         self.min_conditioning = float(config.min_conditioning)
+        self.colour = config.colour
         self.generator = torch.Generator().manual_seed(int(config.seed))
 
     def source_weight(self, source: str) -> float:
@@ -325,39 +323,42 @@ class PoseTracker:
         sdf_fn: Callable[[Tensor], Tensor],
         init_world_T_object: np.ndarray,
         prior: np.ndarray | None = None,
+        terms: Sequence[ResidualTerm] = (),
     ) -> tuple[np.ndarray, dict]:
         """world_T_object that puts the points on sdf_fn's zero level set, and a report.
 
         points_world: (N, 3) world-frame points per source. sdf_fn: (N, 3) float32
         object-frame points -> (N,) signed distances, differentiable in its input.
         prior: the predicted world_T_object the prior pulls toward (None: no prior).
+        terms: further residuals solved jointly (residual_terms.py; e.g. colour against
+        earlier views); the fit checks read the SDF rows alone.
         With fewer than `min_points` points the prior (else the initial pose) comes back
         unchanged with info["skipped"] set.
         """
         check_pose(init_world_T_object, "init_world_T_object")
         if prior is not None:
             check_pose(prior, "prior")
-        pts, weights = self._gather(points_world)
-        info: dict = {"points": len(pts), "iterations": 0, "evaluations": 0, "skipped": None}
+        sdf_pts, sdf_weights = self._gather(points_world)
+        info: dict = {"points": len(sdf_pts), "iterations": 0, "evaluations": 0, "skipped": None}
         fallback = (prior if prior is not None else init_world_T_object).copy()
-        if len(pts) < self.min_points:
-            return self._reject(fallback, info, f"too few points ({len(pts)} < {self.min_points})")
+        if len(sdf_pts) < self.min_points:
+            return self._reject(
+                fallback, info, f"too few points ({len(sdf_pts)} < {self.min_points})"
+            )
+        fn, pts, weights = stack_terms(sdf_fn, sdf_pts, sdf_weights, terms)
+        info["term_rows"] = len(pts) - len(sdf_pts)
         prior_error = self._prior_error(prior)
-        start = self._evaluate(
-            sdf_fn,
-            invert_pose(np.asarray(init_world_T_object, dtype=np.float64)),
-            pts,
-            weights,
-            prior_error,
-        )
+        start_pose = invert_pose(np.asarray(init_world_T_object, dtype=np.float64))
+        start = self._evaluate(fn, start_pose, pts, weights, prior_error)
         if not (torch.isfinite(start.r).all() and torch.isfinite(start.g).all()):
             return self._reject(fallback, info, "diverged (non-finite SDF at the start)")
-        info["initial_rms_mm"] = _rms_mm(start.r, weights)
-        best = self._minimise(sdf_fn, start, pts, weights, prior_error, info)
-        info["final_rms_mm"] = _rms_mm(best.r, weights)
+        n = len(sdf_pts)
+        info["initial_rms_mm"] = _rms_mm(start.r[:n], sdf_weights)
+        best = self._minimise(fn, start, pts, weights, prior_error, info)
+        info["final_rms_mm"] = _rms_mm(best.r[:n], sdf_weights)
         info["cost"] = best.cost
         result = invert_pose(best.obj_T_world)
-        reason = self._divergence(result, fallback) or self._misfit(best, weights, info)
+        reason = self._divergence(result, fallback) or self._misfit(best, n, sdf_weights, info)
         if reason:
             return self._reject(fallback, info, reason)
         return result, info
@@ -377,15 +378,16 @@ class PoseTracker:
             return f"diverged ({moved:.3g} m, {turned:.3g} rad from the prediction)"
         return None
 
-    def _misfit(self, best: _Linearisation, weights: Tensor, info: dict) -> str | None:
-        """Why the solution does not fit the frame (fit_check.py; None: it does).
+    def _misfit(self, best: _Linearisation, n: int, weights: Tensor, info: dict) -> str | None:
+        """Why the solution does not fit the frame's first `n` (SDF) rows (fit_check.py;
+        None: it does).
 
         An ill-conditioned solve is rejected only without a prior: with one, the prior
         holds the unseen directions at the prediction (a sphere's spin) while the points
         fix the rest, so the frame counts as tracked and info["degenerate"] says so.
         """
-        info["inlier_share"] = inlier_share(best.r, weights, self.inlier_m)
-        info["conditioning"] = conditioning(best.q, best.g, weights, self.rotation_scale)
+        info["inlier_share"] = inlier_share(best.r[:n], weights, self.inlier_m)
+        info["conditioning"] = conditioning(best.q[:n], best.g[:n], weights, self.rotation_scale)
         info["degenerate"] = not info["conditioning"] >= self.min_conditioning
         held_by_prior = best.err is not None
         return fit_failure(
