@@ -27,6 +27,7 @@ import numpy as np
 import torch
 from torch import Tensor, nn
 
+from neuralfeels_sem.fields.row_ops import gather_rows
 from neuralfeels_sem.mapping.byte_planes import pack_planes, unpack_planes
 from neuralfeels_sem.mapping.field_init import init_rng_state, initial_state
 
@@ -137,6 +138,12 @@ def _moments(state: dict) -> tuple[Tensor, Tensor]:
 
 def _updated_rows(state: dict) -> Tensor:
     """(rows,) bool, on the CPU: rows with any non-zero moment (never updated otherwise)."""
+    if "moments" in state:
+        # A row's moments as 64-bit words: a row is updated when any bit is set (a -0.0
+        # moment counts too: such a row is stored exactly, which restores it as it is).
+        pair = state["moments"].cpu()
+        words = pair.reshape(pair.shape[0], -1).view(torch.int64)
+        return (words != 0).any(dim=1)
     m, v = _moments(state)
     return ((m != 0) | (v != 0)).reshape(m.shape[0], -1).any(dim=1).cpu()
 
@@ -164,12 +171,15 @@ def _select(table: Tensor, moments: dict, updated: Tensor, replayed: bool, stora
     """Copies of what `_pack` stores of one table: its updated rows and their moments, and
     its other rows (only their digest when `replayed`)."""
     table = table.detach().cpu()
-    if "moments" in moments:  # one masked copy of both moments, then the halves
-        pair = moments["moments"].cpu()[updated]
+    # Row gathers (each row moved as one word, fields/row_ops.py), not boolean masks:
+    # these run on millions of rows between two optimiser steps.
+    rows, other_rows = updated.nonzero().squeeze(1), (~updated).nonzero().squeeze(1)
+    if "moments" in moments:  # one copy of both moments, then the halves
+        pair = gather_rows(moments["moments"].cpu(), rows)
         m, v = pair[:, 0], pair[:, 1]
     else:
         m, v = (t.cpu()[updated] for t in _moments(moments))
-    rest = table[~updated]
+    rest = gather_rows(table, other_rows)
     return {
         "storage": storage,
         "shape": list(table.shape),
@@ -177,7 +187,7 @@ def _select(table: Tensor, moments: dict, updated: Tensor, replayed: bool, stora
         "layout": "moments" if "moments" in moments else "exp_avg",
         "untouched_digest": _digest(rest),
         "untouched": None if replayed else rest,
-        "table": table[updated],
+        "table": gather_rows(table, rows),
         "m": m,
         "v": v,
     }

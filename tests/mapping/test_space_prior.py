@@ -105,3 +105,45 @@ def test_space_prior_loss_is_a_sign_hinge() -> None:
     sdf = torch.tensor([-0.01, 0.02, -0.01, 0.02])
     sign = torch.tensor([OUTSIDE, OUTSIDE, SOLID, SOLID])
     assert torch.allclose(space_prior_loss(sdf, sign), torch.tensor([0.01, 0.0, 0.0, 0.02]))
+
+
+def _carved_by_points(prior: SpaceCarvingPrior, origin: np.ndarray, ends: np.ndarray) -> np.ndarray:
+    """Reference: every half-voxel point of every ray as one array, then its voxels."""
+    ray = ends - origin
+    length = np.linalg.norm(ray, axis=1)
+    direction = ray / length[:, None]
+    lo, hi = prior.center - prior.bound, prior.center + prior.bound
+    with np.errstate(divide="ignore", invalid="ignore"):
+        t0, t1 = (lo - origin) / direction, (hi - origin) / direction
+    t_enter = np.nan_to_num(np.minimum(t0, t1), nan=-np.inf).max(axis=1).clip(min=0.0)
+    t_exit = np.minimum(np.nan_to_num(np.maximum(t0, t1), nan=np.inf).min(axis=1), length - 0.005)
+    carved = np.zeros_like(prior.carved)
+    for start, stop, d in zip(t_enter, t_exit, direction):
+        t = start + 0.5 * prior.voxel_size * np.arange(200)
+        idx = prior._voxel_index(origin + t[t <= stop][:, None] * d)
+        carved[idx[:, 0], idx[:, 1], idx[:, 2]] = True
+    return carved
+
+
+def test_carving_marks_the_voxels_of_every_half_voxel_step() -> None:
+    prior = SpaceCarvingPrior(bound=0.1, resolution=16, ray_stride=1)
+    origin = np.array([0.3, -0.2, 0.25])
+    ends = np.random.default_rng(0).uniform(-0.08, 0.08, (300, 3))
+    prior.carve(origin, ends, stop_before=0.005)
+    assert prior.carved.any() and not prior.carved.all()
+    np.testing.assert_array_equal(prior.carved, _carved_by_points(prior, origin, ends))
+
+
+def test_labels_equal_the_facet_inequalities_on_random_points() -> None:
+    prior = SpaceCarvingPrior(bound=0.1, resolution=32)
+    prior.add_surface(_sphere_points(0.05, 3000) * [1.0, 0.6, 1.3])
+    prior.update_hull()
+    prior.carve(np.array([0.4, 0.1, 0.0]), _sphere_points(0.02, 50), stop_before=0.005)
+    points = np.random.default_rng(1).uniform(-0.1, 0.1, (5000, 3))
+    idx = prior._voxel_index(points)
+    outside = prior.carved[idx[:, 0], idx[:, 1], idx[:, 2]] | (
+        points @ prior.facets[:, :3].T + prior.facets[:, 3] > 1e-12
+    ).any(axis=1)
+    labels = prior.label(points)
+    assert {OUTSIDE, SOLID} <= set(labels.tolist())
+    np.testing.assert_array_equal(labels, np.where(outside, OUTSIDE, SOLID))
