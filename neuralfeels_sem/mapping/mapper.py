@@ -187,7 +187,10 @@ class OnlineMapper:
         # The mapper's own generator: sampling is repeatable and resumable bit for bit.
         self.generator = torch.Generator().manual_seed(int(config.seed))
         self.points = PointExtractor(
-            config.camera_mask, TactileDepth(config.tactile_depth), config.segmentation, hand_model
+            config.camera_mask,
+            TactileDepth(config.tactile_depth, self.device),
+            config.segmentation,
+            hand_model,
         )
         self.memory = MapMemory(
             config, field.bound, field.center.detach().cpu().numpy(), self.generator, self.device

@@ -28,6 +28,7 @@ from typing import Literal, get_args
 
 import cv2
 import numpy as np
+import torch
 
 from neuralfeels_sem.core.digit import GEL_DISTANCE_M, MAX_PENETRATION_M
 from neuralfeels_sem.core.errors import DataError
@@ -70,7 +71,9 @@ class TactileDepthConfig:
 class TactileDepth:
     """Contact depth from a tactile reading (`config.source` = gt | image | net)."""
 
-    def __init__(self, config: TactileDepthConfig | None = None) -> None:
+    def __init__(
+        self, config: TactileDepthConfig | None = None, device: str | torch.device = "cpu"
+    ) -> None:
         config = config or TactileDepthConfig()  # ranges: TactileDepthConfig.__post_init__
         self.source = config.source
         self.contact_threshold = float(config.contact_threshold)
@@ -78,7 +81,7 @@ class TactileDepth:
         self.blur_px = int(config.blur_px)
         self.min_contact_px = int(config.min_contact_px)
         # Constructing the predictor reads nothing; the checkpoint loads on the first touch.
-        self.net = DepthNetPredictor(config.checkpoint, self.min_contact_px)
+        self.net = DepthNetPredictor(config.checkpoint, self.min_contact_px, device)
 
     def __call__(self, reading: TactileReading) -> np.ndarray:
         if self.source == "gt":

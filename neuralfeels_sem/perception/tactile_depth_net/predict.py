@@ -26,11 +26,18 @@ class DepthNetPredictor:
     Args:
         checkpoint: a tactile_depth.pt; None = the shipped asset.
         min_contact_px: a predicted contact smaller than this many pixels counts as none.
+        device: where the network runs (the run's `device`).
     """
 
-    def __init__(self, checkpoint: str | Path | None = None, min_contact_px: int = 150) -> None:
+    def __init__(
+        self,
+        checkpoint: str | Path | None = None,
+        min_contact_px: int = 150,
+        device: str | torch.device = "cpu",
+    ) -> None:
         self.path = Path(checkpoint).expanduser() if checkpoint else SHIPPED_CHECKPOINT
         self.min_contact_px = int(min_contact_px)
+        self.device = torch.device(device)
         self._model: TactileDepthNet | None = None
         self.input_size: tuple[int, int] | None = None
 
@@ -44,6 +51,7 @@ class DepthNetPredictor:
                     f"tactile depth checkpoint {self.path} does not fit its own width "
                     f"{ckpt.width}; retrain it with task=train_tactile_depth"
                 ) from exc
+            self._model.to(self.device)
             self.input_size = ckpt.input_size
         return self._model
 
@@ -52,5 +60,6 @@ class DepthNetPredictor:
         """(N, 320, 240, 3) uint8 RGB frames and their no-contact backgrounds -> (N, 320,
         240) float32 depth in metres along the sensor's +z, 0 off-contact."""
         model = self.load()
-        logits, press_mm = model(preprocess(images, backgrounds, self.input_size))
+        batch = preprocess(images, backgrounds, self.input_size).to(self.device)
+        logits, press_mm = model(batch)
         return to_depth(full_resolution(logits), full_resolution(press_mm), self.min_contact_px)
