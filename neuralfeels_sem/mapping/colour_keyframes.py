@@ -42,7 +42,7 @@ class ColourConfig:
     keyframe_max_angle_deg: farthest keyframe (in orientation) a frame is compared with.
     """
 
-    weight: float = 1.0
+    weight: float = 30.0  # colour rows outweigh the SDF's: they see the turn it cannot
     scale_m: float = 0.01
     blur_px: float = 1.0
     erode_px: int = 1

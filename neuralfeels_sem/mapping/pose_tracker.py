@@ -69,7 +69,7 @@ class TrackerConfig:
         surface and its conditioning (fit_check.py) is at least min_conditioning.
     """
 
-    iterations: int = 15  # Levenberg-Marquardt iterations per frame
+    iterations: int = 8  # Levenberg-Marquardt iterations per frame (most frames stop sooner)
     # A RobustLoss; typed `str` because OmegaConf 2.3 rejects Literal annotations.
     robust_loss: str = "cauchy"
     robust_scale: float = 0.001  # metres where the robust loss stops being quadratic
@@ -358,7 +358,7 @@ class PoseTracker:
         info["final_rms_mm"] = _rms_mm(best.r[:n], sdf_weights)
         info["cost"] = best.cost
         result = invert_pose(best.obj_T_world)
-        reason = self._divergence(result, fallback) or self._misfit(best, n, sdf_weights, info)
+        reason = self._divergence(result, fallback) or self._misfit(best, n, weights, info)
         if reason:
             return self._reject(fallback, info, reason)
         return result, info
@@ -379,15 +379,16 @@ class PoseTracker:
         return None
 
     def _misfit(self, best: _Linearisation, n: int, weights: Tensor, info: dict) -> str | None:
-        """Why the solution does not fit the frame's first `n` (SDF) rows (fit_check.py;
-        None: it does).
+        """Why the solution does not fit the frame (fit_check.py; None: it does): the
+        inlier share of the first `n` (SDF) rows, the conditioning of all rows (colour rows
+        see turns the SDF rows cannot).
 
         An ill-conditioned solve is rejected only without a prior: with one, the prior
         holds the unseen directions at the prediction (a sphere's spin) while the points
         fix the rest, so the frame counts as tracked and info["degenerate"] says so.
         """
-        info["inlier_share"] = inlier_share(best.r[:n], weights, self.inlier_m)
-        info["conditioning"] = conditioning(best.q[:n], best.g[:n], weights, self.rotation_scale)
+        info["inlier_share"] = inlier_share(best.r[:n], weights[:n], self.inlier_m)
+        info["conditioning"] = conditioning(best.q, best.g, weights, self.rotation_scale)
         info["degenerate"] = not info["conditioning"] >= self.min_conditioning
         held_by_prior = best.err is not None
         return fit_failure(
