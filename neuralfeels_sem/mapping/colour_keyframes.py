@@ -11,7 +11,7 @@ built with them, and the mapper holds its points in the object frame.
 
 from __future__ import annotations
 
-from dataclasses import dataclass
+from dataclasses import dataclass, fields
 
 import numpy as np
 import torch
@@ -67,6 +67,11 @@ class ColourConfig:
                 f"mapping.tracker.colour needs 1 <= min_pixels ({self.min_pixels}) "
                 f"<= max_pixels ({self.max_pixels})"
             )
+
+    @classmethod
+    def copy_of(cls, given: ColourConfig) -> ColourConfig:
+        """A plain, checked copy of `given` (a config node read setting by setting)."""
+        return cls(**{f.name: getattr(given, f.name) for f in fields(cls)})
 
 
 def turned_deg(a_world_T_object: np.ndarray, b_world_T_object: np.ndarray) -> float:

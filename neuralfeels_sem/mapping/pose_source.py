@@ -4,7 +4,8 @@
 setting. `track` estimates it per frame by aligning the frame's camera and touch points
 to the field being learned (NeuralFeels' SLAM loop: track, then map with the tracked
 pose); `track_known_shape` aligns them to the ground-truth mesh (NeuralFeels' pose
-tracking mode). Every source also reports how its pose relates to the ground truth, so
+tracking mode). Both also compare the frame's colours with earlier camera views
+(colour_keyframes.py), a motion cue that does not depend on the map. Every source also reports how its pose relates to the ground truth, so
 a run in tracked mode is scored the way a user without ground truth would see it.
 """
 

@@ -164,7 +164,7 @@ class PoseTracker:
         self.inlier_m = float(config.inlier_m)
         self.min_inlier_share = float(config.min_inlier_share)
         self.min_conditioning = float(config.min_conditioning)
-        self.colour = config.colour
+        self.colour = ColourConfig.copy_of(config.colour)
         self.generator = torch.Generator().manual_seed(int(config.seed))
 
     def source_weight(self, source: str) -> float:
