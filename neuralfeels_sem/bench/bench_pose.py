@@ -7,6 +7,9 @@ of the default size (`track`), starting 3 degrees and 2 mm off. Reports millisec
 tracked frame, LM iterations, the residual pose error, the one-off cost of building the
 96^3 grid (without its disk cache), and for the field the cost of one batched pass over
 the frame's points: SDF alone (a trial step) and SDF with its gradient (an accepted one).
+(c) The colour rows (docs/pose.md): a frame of the painted sphere (mapping/painted_sphere.py)
+tracked against the same field with and without its colour rows against two earlier
+views: milliseconds per frame, field passes (trial steps and gradients) and colour rows.
 """
 
 from __future__ import annotations
@@ -70,6 +73,41 @@ def _pass_ms(tracker: PoseTracker, sdf_fn, obj, truth: np.ndarray) -> dict:
     return out
 
 
+def _colour(field) -> dict:
+    """Milliseconds per frame with the colour rows (two references) and without them."""
+    from neuralfeels_sem.mapping.colour_keyframes import ColourConfig, ColourKeyframes
+    from neuralfeels_sem.mapping.painted_sphere import RADIUS, frame_of, turning
+    from neuralfeels_sem.perception.pointcloud import camera_points
+
+    poses = turning(3, 3.0)
+    frames = [frame_of(k, pose) for k, pose in enumerate(poses)]
+    world = [camera_points(f.camera, np.eye(4)) for f in frames]
+    out: dict = {"camera_points": len(world[2])}
+    for weight in (30.0, 0.0):
+        config = TrackerConfig(
+            rotation_scale=RADIUS, min_inlier_share=0.0, min_conditioning=0.0,
+            colour=ColourConfig(weight=weight, keyframe_angle_deg=2.0),
+        )  # fmt: skip
+        tracker = PoseTracker(config)
+        keyframes = ColourKeyframes(tracker.colour)
+        for k in (0, 1):
+            keyframes.add(keyframes.view(frames[k], world[k]), poses[k], True)
+
+        def solve(keyframes=keyframes, tracker=tracker) -> dict:
+            terms = keyframes.terms(keyframes.view(frames[2], world[2]), poses[1])
+            return tracker.track({"camera": world[2]}, field.sdf, poses[1], poses[1], terms)[1]
+
+        solve()  # warm-up (allocations, lazy compilation)
+        start = time.perf_counter()
+        for _ in range(REPEATS):
+            info = solve()
+        name = "with_colour" if weight else "without_colour"
+        out[f"{name}_ms_per_frame"] = round(1e3 * (time.perf_counter() - start) / REPEATS, 1)
+        out[f"{name}_evaluations"] = info["evaluations"] + info["iterations"]
+        out["colour_rows"] = max(out.get("colour_rows", 0), info["term_rows"])
+    return out
+
+
 def run() -> dict:
     obj = make_object("patched_toy", CLASSES)
     truth = np.eye(4)
@@ -92,9 +130,11 @@ def run() -> dict:
     learned = _track(timing_only, field.sdf, obj, truth)
     learned = {k: learned[k] for k in ("ms_per_frame", "iterations", "sdf_evaluations", "points")}
     learned.update(_pass_ms(timing_only, field.sdf, obj, truth))
+    colour_field = SemanticField(config, bound=0.05)
     return {
         "torch_threads": torch.get_num_threads(),
         "grid_96_build_s": round(grid_s, 2),
         "known_shape": known,
         "field": learned,
+        "colour": _colour(colour_field),
     }

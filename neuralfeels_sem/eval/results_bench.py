@@ -109,6 +109,12 @@ FIGURES: tuple[tuple[str, str, str, str], ...] = (
     ("mapper", "add_frame_per_s", "mapper frames (points + steps)", "frames/s"),
     ("pose", "known_shape.ms_per_frame", "pose tracking against the true shape", "ms/frame"),
     ("pose", "field.ms_per_frame", "pose tracking against the field", "ms/frame"),
+    (
+        "pose",
+        "colour.with_colour_ms_per_frame",
+        "pose tracking against the field with colour rows (painted sphere)",
+        "ms/frame",
+    ),
     ("pose", "grid_96_build_s", "true-shape SDF grid (96^3) build", "s"),
     ("checkpoint", "size_mb", "checkpoint of the default config", "MB"),
     ("checkpoint", "exact_size_mb", "checkpoint, exact storage", "MB"),
