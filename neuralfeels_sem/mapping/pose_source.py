@@ -150,6 +150,7 @@ class TrackedPose(PoseSource):
         self.tracked_frames = 0
         self.reinitialised_frames = 0  # tracked only after a restart from the last pose
         self.degenerate_frames = 0  # tracked, some directions held by the motion prior
+        self.colourless_frames = 0  # solved with colour on but no earlier view to compare
         self.track_seconds = 0.0  # wall time spent tracking (SDF evaluations dominate)
         self.colour = ColourKeyframes(self.tracker.colour, seed)
         self._view = None  # the current frame's colour view
@@ -212,6 +213,7 @@ class TrackedPose(PoseSource):
         sdf_fn = self._sdf_fn(mapper)
         start = time.perf_counter()
         terms = self.colour.terms(self._view, predicted)
+        self.colourless_frames += int(self.colour.enabled and not terms)
         pose, info = self.tracker.track(tensors, sdf_fn, predicted, predicted, terms)
         retried = bool(info["skipped"]) and not info["skipped"].startswith("too few points")
         if retried:
@@ -262,6 +264,8 @@ class TrackedPose(PoseSource):
             "pose_frames_not_tracked": self.frames_not_tracked,
             "pose_frames_reinitialised": self.reinitialised_frames,
             "pose_frames_degenerate": self.degenerate_frames,
+            "pose_frames_without_colour": self.colourless_frames,
+            "pose_colour_keyframes": len(self.colour.keyframes),
             "pose_notes": self.notes(),
             # every solve's time, including the ones rejected, over the frames that tried
             "pose_track_s_per_frame": self.track_seconds / max(attempts, 1),
@@ -306,6 +310,7 @@ class TrackedPose(PoseSource):
             "tracked_frames": self.tracked_frames,
             "reinitialised_frames": self.reinitialised_frames,
             "degenerate_frames": self.degenerate_frames,
+            "colourless_frames": self.colourless_frames,
             "track_seconds": self.track_seconds,
         }
 
@@ -317,6 +322,7 @@ class TrackedPose(PoseSource):
         self.tracked_frames = int(state.get("tracked_frames", 0))
         self.reinitialised_frames = int(state.get("reinitialised_frames", 0))
         self.degenerate_frames = int(state.get("degenerate_frames", 0))
+        self.colourless_frames = int(state.get("colourless_frames", 0))
         self.track_seconds = float(state.get("track_seconds", 0.0))
         if self.history:
             self.last_estimate = self.history[-1]

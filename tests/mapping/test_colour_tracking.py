@@ -55,6 +55,7 @@ def test_colour_recovers_a_spin_the_shape_cannot_show() -> None:
     np.testing.assert_allclose(seen[:3, 3], poses[-1][:3, 3], atol=5e-4)
     m = source.metrics()
     assert m["pose_frames_tracked"] == 9 and m["pose_frames_degenerate"] == 0
+    assert m["pose_frames_without_colour"] == 0 and m["pose_colour_keyframes"] >= 2
     assert m["pose_error_mm"] < 1.0
 
 
