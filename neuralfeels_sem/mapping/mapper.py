@@ -44,9 +44,8 @@ class MapperConfig:
     """`mapping.mapper`: OnlineMapper's settings (the command line's defaults)."""
 
     num_classes: int = len(DEFAULT_MATERIALS)  # conf: ${len:${materials}}; must match the field
-    steps_per_frame: int = (
-        3  # 5 before: no better at 20 s (docs/field_and_mapper.md#steps-per-frame)
-    )
+    # 3: five mapped no better at the 20 s default (docs/field_and_mapper.md#steps-per-frame)
+    steps_per_frame: int = 3
     # fixed: steps_per_frame on every frame; surprise: min_steps_per_frame up to
     # steps_per_frame by how much of the new frame the field does not explain yet
     # (mapping/step_policy.py).
