@@ -31,8 +31,19 @@ class EfficientNetClassifierConfig:
     # Training only: crop this many native pixels around the contact before resizing
     # (null = the paper's whole-frame resize). A checkpoint records its own crop.
     crop_px: int | None = None
+    # Read each touch patch by patch (perception/classifier/patches.py): crops at most this
+    # many pixels apart across the imprint, at most max_patches; each contact point takes
+    # the nearest confident patch's material. 0: one label for the whole touch.
+    patch_spacing_px: int = 0
+    max_patches: int = 8
 
     def __post_init__(self) -> None:
+        if not 0 <= self.patch_spacing_px <= 240:
+            raise ValueError(
+                f"classifier.patch_spacing_px={self.patch_spacing_px} must be in 0..240 (0 = off)"
+            )
+        if not 1 <= self.max_patches <= 64:
+            raise ValueError(f"classifier.max_patches={self.max_patches} must be in 1..64")
         if not 0.0 <= self.min_confidence <= 1.0:
             raise ValueError(f"classifier.min_confidence={self.min_confidence} must be in [0, 1]")
         if not 0.0 < self.max_edge_share <= 1.0:

@@ -15,13 +15,14 @@ from typing import TYPE_CHECKING
 import numpy as np
 import torch
 
-from neuralfeels_sem.core.frame import Frame
+from neuralfeels_sem.core.frame import Frame, TactileReading
+from neuralfeels_sem.core.geometry import invert_pose, project, transform_points
 from neuralfeels_sem.mapping.keyframes import KeyframeBuffer
 from neuralfeels_sem.mapping.label_vote import LabelVote
 from neuralfeels_sem.mapping.sampling import subsample
 from neuralfeels_sem.mapping.space_prior import SpaceCarvingPrior
 from neuralfeels_sem.mapping.touch_memory import TouchBuffer
-from neuralfeels_sem.perception.pointcloud import sensor_origin_and_axis
+from neuralfeels_sem.perception.pointcloud import object_T_sensor, sensor_origin_and_axis
 from neuralfeels_sem.perception.touch import TouchLabel
 
 if TYPE_CHECKING:
@@ -114,12 +115,12 @@ class MapMemory:
         _, axis = sensor_origin_and_axis(frame.tactile[finger].world_T_sensor, pose)
         if self.space_prior is not None:
             self.space_prior.add_surface(kept)
-        usable = label is not None and label.usable
+        labels, weights = touch_point_labels(frame.tactile[finger], kept, pose, label)
         self.touches.add(
             self._tensor(kept),
             self._tensor(axis),
-            label.label if usable else -1,
-            label.confidence if usable else 0.0,
+            torch.as_tensor(labels, dtype=torch.long, device=self.device),
+            self._tensor(weights),
             finger=finger,
             frame_index=frame.index,
         )
@@ -138,3 +139,30 @@ class MapMemory:
         self.touches.load_state_dict(state["touches"])
         if self.space_prior is not None and state.get("space_prior"):
             self.space_prior.load_state_dict(state["space_prior"])
+
+
+def touch_point_labels(
+    reading: TactileReading,
+    points: np.ndarray,
+    world_T_object: np.ndarray,
+    label: TouchLabel | None,
+) -> tuple[np.ndarray, np.ndarray]:
+    """(N,) label and (N,) weight of each object-frame contact point of one touch.
+
+    With patch readings (`label.pixel_labels`) each point takes the label of the pixel it
+    was seen at (the points are projected back into the sensor); otherwise every point
+    takes the touch's label when it is usable, weighted by its confidence, else -1.
+    """
+    n = len(points)
+    if label is None or not label.contact:
+        return np.full(n, -1), np.zeros(n)
+    if label.has_pixel_labels:
+        sensor_T_object = invert_pose(object_T_sensor(reading.world_T_sensor, world_T_object))
+        uv = project(transform_points(sensor_T_object, points), reading.intrinsics)
+        h, w = label.pixel_labels.shape
+        col = np.clip(np.rint(uv[:, 0]).astype(np.int64), 0, w - 1)
+        row = np.clip(np.rint(uv[:, 1]).astype(np.int64), 0, h - 1)
+        return label.pixel_labels[row, col].astype(np.int64), label.pixel_confidence[row, col]
+    if label.usable:
+        return np.full(n, label.label), np.full(n, label.confidence)
+    return np.full(n, -1), np.zeros(n)

@@ -29,6 +29,7 @@ class TouchBuffer:
         self._axes: list[torch.Tensor] = []
         self._labels: list[torch.Tensor] = []
         self._weights: list[torch.Tensor] = []
+        self._touch_labels: list[int] = []  # each touch's label for the vote (-1: none)
         self._fingers: list[str | None] = []  # which finger made each touch (None: unknown)
         self._frames: list[int] = []  # frame index of each touch
         self._cat: dict[str, torch.Tensor] | None = None
@@ -39,25 +40,30 @@ class TouchBuffer:
         self,
         points: torch.Tensor,
         axis: torch.Tensor,
-        label: int,
-        weight: float,
+        label: int | torch.Tensor,
+        weight: float | torch.Tensor,
         finger: str | None = None,
         frame_index: int = -1,
     ) -> None:
-        """`label` -1 keeps the touch for geometry only; `finger` and `frame_index` tell
-        the vote which touches are frames of one press (None: a press of its own)."""
+        """Store one touch. `label` -1 keeps it for geometry only; a (n,) tensor gives each
+        point its own label (-1: none) and `weight` then is (n,) too (patch readings). The
+        vote sees the touch's most common point label. `finger` and `frame_index` tell the
+        vote which touches are frames of one press (None: a press of its own)."""
         check_points(points, "touch points")
         n = points.shape[0]
+        device = points.device
+        labels = torch.as_tensor(label, dtype=torch.long, device=device).expand(n).clone()
+        weights = torch.as_tensor(weight, dtype=torch.float32, device=device).expand(n).clone()
+        read = labels[labels >= 0]
+        self._touch_labels.append(int(torch.mode(read).values) if len(read) else -1)
         self._fingers.append(finger)
         self._frames.append(int(frame_index))
         self._points.append(points)
         self._axes.append(axis.reshape(1, 3).expand(n, 3).clone())
-        self._labels.append(torch.full((n,), int(label), dtype=torch.long, device=points.device))
-        self._weights.append(
-            torch.full((n,), float(weight), dtype=torch.float32, device=points.device)
-        )
+        self._labels.append(labels)
+        self._weights.append(weights)
         self.num_touches += 1
-        self.num_labelled += int(label >= 0)
+        self.num_labelled += int(len(read) > 0)
         self._cat = None
 
     def tensors(self) -> dict[str, torch.Tensor]:
@@ -90,11 +96,11 @@ class TouchBuffer:
 
     def _outvoted_points(self) -> torch.Tensor:
         """Per stored point: does its touch get outvoted by its labelled neighbours?"""
-        labels = torch.stack([t[0] for t in self._labels])
+        labels = torch.tensor(self._touch_labels, dtype=torch.long, device=self.device)
         centroids = torch.stack([p.mean(0) for p in self._points])
         mine = labels >= 0
         kept = torch.nonzero(mine).flatten().tolist()
-        outvoted = torch.zeros(len(labels), dtype=torch.bool, device=labels.device)
+        outvoted = torch.zeros(len(labels), dtype=torch.bool, device=self.device)
         outvoted[mine] = self.vote.outvoted(
             centroids[mine],
             labels[mine],
@@ -116,6 +122,7 @@ class TouchBuffer:
             "points": list(self._points),
             "axes": list(self._axes),
             "labels": list(self._labels),
+            "touch_labels": list(self._touch_labels),
             "weights": list(self._weights),
             "fingers": list(self._fingers),
             "frames": list(self._frames),
@@ -128,6 +135,10 @@ class TouchBuffer:
         self._axes = [t.to(self.device) for t in state["axes"]]
         self._labels = [t.to(self.device) for t in state["labels"]]
         self._weights = [t.to(self.device) for t in state["weights"]]
+        # Checkpoints from before patch readings: a touch's label is its points' one label.
+        self._touch_labels = [
+            int(t) for t in state.get("touch_labels", [int(p[0]) for p in self._labels])
+        ]
         # Checkpoints from before presses were recorded: every touch a press of its own.
         self._fingers = list(state.get("fingers", [None] * len(self._points)))
         self._frames = [int(f) for f in state.get("frames", [-1] * len(self._points))]

@@ -24,8 +24,22 @@ class TouchLabel:
     confidence: float = 0.0  # probability of the predicted class
     probs: np.ndarray | None = None  # (C,) class probabilities, None without contact
     low_confidence: bool = False
+    # Patch readings (classifier.patch_spacing_px > 0, perception/classifier/patches.py):
+    # per contact pixel, the material of the nearest patch the classifier read (NO_LABEL:
+    # none) and that patch's confidence, both (H, W). None: one label for the whole touch.
+    pixel_labels: np.ndarray | None = None
+    pixel_confidence: np.ndarray | None = None
 
     @property
     def usable(self) -> bool:
-        """True when the touch may train the material branch."""
+        """True when the touch's own label may train the material branch."""
         return self.contact and self.label != NO_LABEL and not self.low_confidence
+
+    @property
+    def has_pixel_labels(self) -> bool:
+        """True when patch readings give some contact pixel a material."""
+        return (
+            self.contact
+            and self.pixel_labels is not None
+            and bool((self.pixel_labels != NO_LABEL).any())
+        )

@@ -23,6 +23,7 @@ from neuralfeels_sem.core.errors import ConfigError, DataError
 from neuralfeels_sem.core.frame import TactileReading
 from neuralfeels_sem.perception.classifier.checkpoint import ClassifierCheckpoint, load_checkpoint
 from neuralfeels_sem.perception.classifier.model import build_model
+from neuralfeels_sem.perception.classifier.patches import crop_around, patch_centres, pixel_labels
 from neuralfeels_sem.perception.classifier.predict import predict_probs
 from neuralfeels_sem.perception.classifier.transforms import preprocess, resize_batch
 from neuralfeels_sem.perception.contact import ContactGate, edge_share
@@ -71,6 +72,8 @@ class MaterialClassifier:
         weights: str | None = None,
         input_size: int = 224,
         crop_px: int | None = None,
+        patch_spacing_px: int = 0,
+        max_patches: int = 8,
     ) -> None:
         if not 0.0 <= min_confidence <= 1.0:
             raise ValueError(f"min_confidence={min_confidence} must be in [0, 1]")
@@ -90,6 +93,12 @@ class MaterialClassifier:
         self.weights = weights
         self.input_size = int(input_size)
         self.crop_px = crop_px
+        if patch_spacing_px < 0 or max_patches < 1:
+            raise ValueError(
+                f"patch_spacing_px={patch_spacing_px} must be >= 0 and max_patches={max_patches} >= 1"
+            )
+        self.patch_spacing_px = int(patch_spacing_px)
+        self.max_patches = int(max_patches)
         self._backgrounds: dict[str, np.ndarray] = {}
         self._model: torch.nn.Module | None = None
         self._ckpt: ClassifierCheckpoint | None = None
@@ -243,4 +252,31 @@ class MaterialClassifier:
                     labels[i].label = NO_LABEL
                 else:
                     labels[i].label = top
+            if self.patch_spacing_px > 0:
+                read = [i for i in touched if not at_edge[i]]
+                self._read_patches([readings[i] for i in read], [masks[i] for i in read],
+                                   [labels[i] for i in read])  # fmt: skip
         return labels
+
+    def _read_patches(
+        self, readings: Sequence[TactileReading], masks: list[np.ndarray], labels: list[TouchLabel]
+    ) -> None:
+        """Fill `pixel_labels` of each touch from crops across its imprint (one batch).
+
+        The first centre is the contact's centroid, whose crop the touch's own label read.
+        """
+        crop_px = self.loaded.meta.get("crop_px")
+        if not crop_px or not readings:
+            return  # a whole-frame model has no patches to read
+        centres = [patch_centres(m, self.patch_spacing_px, self.max_patches) for m in masks]
+        crops = [
+            crop_around(r.image, c, crop_px) for r, cs in zip(readings, centres) for c in cs[1:]
+        ]
+        probs = iter(self.predict_images(np.stack(crops)) if crops else [])
+        for reading, cs, label in zip(readings, centres, labels):
+            p = np.stack([label.probs, *(next(probs) for _ in cs[1:])])
+            top, conf = p.argmax(axis=1), p.max(axis=1)
+            top = np.where(conf >= self.min_confidence, top, NO_LABEL)
+            label.pixel_labels, label.pixel_confidence = pixel_labels(
+                reading.image.shape[:2], cs, top, conf, crop_px / 2.0
+            )

@@ -1,0 +1,91 @@
+"""Several readings of one imprint: the classifier applied to patches across the contact.
+
+The classifier looks at a `crop_px` window around the contact's centroid (8.4 mm at the
+shipped 112 px), but an imprint on a flat face covers most of the 18 x 24 mm gel. One
+label for the whole imprint paints every contact point with the material under its
+centre, so a press across a material border moves the border by up to the imprint's
+half-width. Reading patches of the imprint separately (each a crop centred on a point of
+the contact, as the training data's crops are) gives each contact pixel the material of the
+patch nearest to it, and the map a border resolved to the patch spacing.
+
+Patch centres: the contact's centroid first, then farthest-point sampling over the contact
+pixels until every contact pixel lies within `spacing_px` of a centre or `max_patches`
+centres are taken.
+"""
+
+from __future__ import annotations
+
+import numpy as np
+
+from neuralfeels_sem.perception.touch import NO_LABEL
+
+SAMPLE_STRIDE = 4  # farthest-point sampling runs on every 4th contact pixel (rows and columns)
+
+
+def patch_centres(mask: np.ndarray, spacing_px: float, max_patches: int) -> np.ndarray:
+    """(K, 2) (row, column) centres over a contact mask: centroid first, then farthest points."""
+    if mask.ndim != 2:
+        raise ValueError(f"contact mask must be (H, W), got {mask.shape}")
+    if spacing_px <= 0 or max_patches < 1:
+        raise ValueError(f"spacing_px={spacing_px} must be > 0 and max_patches={max_patches} >= 1")
+    rows, cols = np.nonzero(mask)
+    if len(rows) == 0:
+        return np.zeros((0, 2))
+    pixels = np.column_stack([rows, cols]).astype(np.float64)
+    centres = [pixels.mean(axis=0)]
+    sparse = mask[::SAMPLE_STRIDE, ::SAMPLE_STRIDE]
+    r, c = np.nonzero(sparse)
+    candidates = np.column_stack([r, c]).astype(np.float64) * SAMPLE_STRIDE
+    if len(candidates) == 0:
+        return np.array(centres)
+    distance = np.linalg.norm(candidates - centres[0], axis=1)
+    while len(centres) < max_patches:
+        far = int(distance.argmax())
+        if distance[far] <= spacing_px:
+            break
+        centres.append(candidates[far])
+        distance = np.minimum(distance, np.linalg.norm(candidates - candidates[far], axis=1))
+    return np.array(centres)
+
+
+def crop_around(image: np.ndarray, centre: np.ndarray, crop_px: int) -> np.ndarray:
+    """The `crop_px` square window centred on `centre` (row, column), kept inside the image."""
+    h, w = image.shape[:2]
+    crop = min(int(crop_px), h, w)
+    y0 = int(np.clip(round(centre[0] - crop / 2.0), 0, h - crop))
+    x0 = int(np.clip(round(centre[1] - crop / 2.0), 0, w - crop))
+    return image[y0 : y0 + crop, x0 : x0 + crop]
+
+
+def pixel_labels(
+    shape: tuple[int, int],
+    centres: np.ndarray,
+    labels: np.ndarray,
+    confidence: np.ndarray,
+    reach_px: float,
+) -> tuple[np.ndarray, np.ndarray]:
+    """Each pixel's material: the label of the nearest centre that has one, within reach.
+
+    `labels` (K,) per centre (NO_LABEL: the patch abstained), `confidence` (K,). Returns
+    (H, W) int16 labels (NO_LABEL farther than `reach_px` from every labelled centre) and
+    (H, W) float32 confidences (0 there). Every pixel is labelled, not only the contact
+    gate's: the map's contact points come from the tactile depth, whose contact differs
+    from the gate's at its rim.
+    """
+    centres = np.asarray(centres, np.float64).reshape(-1, 2)
+    labels = np.asarray(labels).reshape(-1)
+    if len(labels) != len(centres) or len(confidence) != len(centres):
+        raise ValueError(f"{len(centres)} centres but {len(labels)} labels")
+    out = np.full(shape, NO_LABEL, dtype=np.int16)
+    conf = np.zeros(shape, dtype=np.float32)
+    read = labels != NO_LABEL
+    if not read.any():
+        return out, conf
+    kept = centres[read]
+    rows, cols = np.mgrid[0 : shape[0], 0 : shape[1]]
+    d2 = (rows[..., None] - kept[:, 0]) ** 2 + (cols[..., None] - kept[:, 1]) ** 2
+    nearest = d2.argmin(axis=-1)
+    near = np.take_along_axis(d2, nearest[..., None], axis=-1)[..., 0] <= reach_px**2
+    out[near] = labels[read][nearest[near]]
+    conf[near] = np.asarray(confidence, np.float32)[read][nearest[near]]
+    return out, conf

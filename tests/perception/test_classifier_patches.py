@@ -1,0 +1,111 @@
+"""Patch readings: centres across an imprint, each pixel labelled by its nearest patch."""
+
+from __future__ import annotations
+
+from pathlib import Path
+
+import numpy as np
+import pytest
+import torch
+
+from neuralfeels_sem.configs.classifier import EfficientNetClassifierConfig
+from neuralfeels_sem.core.digit import DIGIT_HEIGHT, DIGIT_INTRINSICS, DIGIT_WIDTH
+from neuralfeels_sem.core.frame import TactileReading
+from neuralfeels_sem.perception.classifier import MaterialClassifier
+from neuralfeels_sem.perception.classifier.checkpoint import save_checkpoint
+from neuralfeels_sem.perception.classifier.model import build_model
+from neuralfeels_sem.perception.classifier.patches import crop_around, patch_centres, pixel_labels
+from neuralfeels_sem.perception.classifier.transforms import IMAGENET_MEAN, IMAGENET_STD
+from neuralfeels_sem.perception.touch import NO_LABEL
+from tests.perception.synthetic_tactile import CLASSES, background, pressed
+
+
+def _disc(radius: float, centre=(160, 120)) -> np.ndarray:
+    v, u = np.mgrid[0:DIGIT_HEIGHT, 0:DIGIT_WIDTH]
+    return (v - centre[0]) ** 2 + (u - centre[1]) ** 2 <= radius**2
+
+
+def test_centres_start_at_the_centroid_and_cover_the_contact_within_the_spacing() -> None:
+    mask = _disc(100)
+    centres = patch_centres(mask, spacing_px=56, max_patches=64)
+    np.testing.assert_allclose(centres[0], [160, 120], atol=0.5)
+    rows, cols = np.nonzero(mask)
+    pixels = np.column_stack([rows, cols])
+    gap = np.min(np.linalg.norm(pixels[:, None] - centres[None], axis=2), axis=1)
+    # Farthest-point sampling runs on every 4th pixel: the rest are within the spacing
+    # plus the sampling stride's diagonal.
+    assert gap.max() <= 56 + 4 * np.sqrt(2)
+    assert len(patch_centres(mask, spacing_px=56, max_patches=3)) == 3
+    assert len(patch_centres(_disc(20), spacing_px=56, max_patches=8)) == 1  # one crop holds it
+    assert patch_centres(np.zeros_like(mask), 56, 8).shape == (0, 2)
+    with pytest.raises(ValueError, match="spacing_px"):
+        patch_centres(mask, 0, 8)
+
+
+def test_each_pixel_takes_its_nearest_confident_patch_within_reach() -> None:
+    centres = np.array([[100.0, 60.0], [100.0, 180.0], [250.0, 120.0]])
+    labels = np.array([0, 2, NO_LABEL])  # the third patch abstained
+    confidence = np.array([0.9, 0.95, 0.5])
+    out, conf = pixel_labels((DIGIT_HEIGHT, DIGIT_WIDTH), centres, labels, confidence, 56.0)
+    assert out[100, 50] == 0 and conf[100, 50] == pytest.approx(0.9)
+    assert out[100, 190] == 2 and conf[100, 190] == pytest.approx(0.95)
+    assert out[250, 120] == NO_LABEL and conf[250, 120] == 0.0  # only the abstained patch near
+    assert out[100, 119] == NO_LABEL  # 59 px from both labelled patches: out of reach
+    wide, _ = pixel_labels((DIGIT_HEIGHT, DIGIT_WIDTH), centres, labels, confidence, 70.0)
+    assert wide[100, 119] == 0 and wide[100, 121] == 2  # the border halfway between
+    none, _ = pixel_labels((10, 10), centres[:1], np.array([NO_LABEL]), np.array([0.1]), 56.0)
+    assert (none == NO_LABEL).all()
+
+
+def test_crop_around_stays_inside_the_image() -> None:
+    image = np.arange(DIGIT_HEIGHT * DIGIT_WIDTH * 3, dtype=np.uint8).reshape(
+        DIGIT_HEIGHT, DIGIT_WIDTH, 3
+    )
+    assert crop_around(image, np.array([0.0, 0.0]), 112).shape == (112, 112, 3)
+    np.testing.assert_array_equal(crop_around(image, np.array([0.0, 0.0]), 112), image[:112, :112])
+    np.testing.assert_array_equal(
+        crop_around(image, np.array([160.0, 120.0]), 112), image[104:216, 64:176]
+    )
+
+
+@pytest.fixture(scope="module")
+def crop_checkpoint(tmp_path_factory) -> Path:
+    torch.manual_seed(0)
+    path = tmp_path_factory.mktemp("ckpt") / "classifier.pt"
+    save_checkpoint(
+        path, build_model(4), CLASSES, 32, list(IMAGENET_MEAN), list(IMAGENET_STD),
+        meta={"crop_px": 112},
+    )  # fmt: skip
+    return path
+
+
+def test_classify_reads_patches_of_a_touch_unless_it_is_cut_off_by_the_edge(
+    crop_checkpoint: Path,
+) -> None:
+    rng = np.random.default_rng(0)
+    kwargs = {"checkpoint": str(crop_checkpoint), "device": "cpu", "min_confidence": 0.0}
+    image = pressed(1, 0, rng)
+    touch = TactileReading("index", image, np.eye(4), DIGIT_INTRINSICS, background=background(1))
+    plain = MaterialClassifier(CLASSES, **kwargs).classify([touch])[0]
+    assert plain.contact and plain.pixel_labels is None and not plain.has_pixel_labels
+    clf = MaterialClassifier(CLASSES, patch_spacing_px=40, max_patches=32, **kwargs)
+    label = clf.classify([touch])[0]
+    assert label.label == plain.label  # the touch's own label is the centre crop's
+    assert label.has_pixel_labels and label.pixel_labels.shape == image.shape[:2]
+    contact = clf.contact_mask(touch)
+    assert (label.pixel_labels[contact] != NO_LABEL).all()  # min_confidence 0: all read
+    capped = MaterialClassifier(CLASSES, patch_spacing_px=40, max_patches=2, **kwargs)
+    assert (capped.classify([touch])[0].pixel_labels[contact] == NO_LABEL).any()  # out of reach
+    centre = np.round(np.argwhere(contact).mean(axis=0)).astype(int)
+    assert label.pixel_labels[tuple(centre)] == label.label
+    empty = TactileReading("ring", background(2), np.eye(4), DIGIT_INTRINSICS, background(2))
+    assert clf.classify([empty])[0].pixel_labels is None
+    edge = MaterialClassifier(
+        CLASSES, patch_spacing_px=40, max_edge_share=0.01, edge_px=100, **kwargs
+    )
+    gated = edge.classify([touch])[0]
+    assert gated.label == NO_LABEL and gated.pixel_labels is None  # edge-gated: no label at all
+    with pytest.raises(ValueError, match="patch_spacing_px"):
+        MaterialClassifier(CLASSES, patch_spacing_px=-1)
+    with pytest.raises(ValueError, match="patch_spacing_px"):
+        EfficientNetClassifierConfig(patch_spacing_px=300)
