@@ -70,6 +70,10 @@ def run_errors(run_dir: Path) -> dict:
         "generation": getattr(obj, "generation", None),
         "matching_mean_class_pct": metrics.get("matching_mean_class_pct"),
         "nearest_press_mean_class_pct": nearest_press_map(matching, touches),
+        # Ceilings from the ground truth (diagnostic oracles): every contact point read
+        # right, and every press read as the majority material under it.
+        "nearest_contact_truth_mean_class_pct": nearest_contact_truth(obj, matching, touches),
+        "nearest_press_truth_mean_class_pct": nearest_press_truth(obj, matching, touches),
         **report,
     }
 
@@ -86,14 +90,43 @@ def nearest_press_map(matching: MatchingEvaluator, touches: TouchSet) -> float |
     return matching.evaluate_labels(labels[nearest])["matching_mean_class_pct"]
 
 
+def nearest_contact_truth(obj, matching: MatchingEvaluator, touches: TouchSet) -> float | None:
+    """Oracle: each sample takes the true material of the nearest contact point of any
+    press (labelled or not): what the presses' placement allows with perfect reading."""
+    if not touches.points:
+        return None
+    points = np.concatenate(touches.points)
+    truth = obj.labels_at(points)
+    keep = truth >= 0
+    nearest = cKDTree(points[keep]).query(matching.points)[1]
+    return matching.evaluate_labels(truth[keep][nearest])["matching_mean_class_pct"]
+
+
+def nearest_press_truth(obj, matching: MatchingEvaluator, touches: TouchSet) -> float | None:
+    """Oracle: every press labelled with the majority true material under it, all used."""
+    labels = []
+    for p in touches.points:
+        truth = obj.labels_at(p)
+        truth = truth[truth >= 0]
+        labels.append(int(np.bincount(truth).argmax()) if len(truth) else -1)
+    labels = np.array(labels)
+    oracle = TouchSet(touches.points, labels, labels >= 0)
+    return nearest_press_map(matching, oracle)
+
+
 def summary_line(row: dict) -> str:
     lost = row["by_case"]
     parts = " ".join(f"{c}={lost[c]['mean_class_points_lost']:5.1f}" for c in CASES)
     family = (row.get("generation") or {}).get("family", "")
-    voronoi = row["nearest_press_mean_class_pct"] or float("nan")
+    nan = float("nan")
+    voronoi = row["nearest_press_mean_class_pct"] or nan
+    ceilings = (
+        f"{row['nearest_press_truth_mean_class_pct'] or nan:5.1f}/"
+        f"{row['nearest_contact_truth_mean_class_pct'] or nan:5.1f}"
+    )
     return (
-        f"{row['object']:>14} {family:>11} mean-class {row['matching_mean_class_pct'] or float('nan'):5.1f}"
-        f" (nearest press {voronoi:5.1f})  lost: {parts}"
+        f"{row['object']:>14} {family:>11} mean-class {row['matching_mean_class_pct'] or nan:5.1f}"
+        f" (nearest press {voronoi:5.1f}, true presses/points {ceilings})  lost: {parts}"
     )
 
 
