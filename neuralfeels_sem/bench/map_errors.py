@@ -35,7 +35,8 @@ def touch_set(mapper) -> TouchSet:
     """The mapper's touches: points, labels, and whether the material loss used each."""
     buffer = mapper.memory.touches
     state = buffer.state_dict()
-    labels = np.array([int(t[0]) for t in state["labels"]], dtype=np.int64)
+    point_labels = [t.cpu().numpy().astype(np.int64) for t in state["labels"]]
+    labels = np.array(state["touch_labels"], dtype=np.int64)
     used = labels >= 0
     if buffer.vote is not None and buffer.vote.active and used.any():
         centroids = torch.stack([p.mean(0) for p in state["points"]])
@@ -48,7 +49,7 @@ def touch_set(mapper) -> TouchSet:
         )
         used[kept[outvoted.cpu().numpy()]] = False
     points = [p.cpu().numpy().astype(np.float64) for p in state["points"]]
-    return TouchSet(points, labels, used)
+    return TouchSet(points, labels, used, point_labels)
 
 
 def run_errors(run_dir: Path) -> dict:
@@ -81,11 +82,15 @@ def run_errors(run_dir: Path) -> dict:
 def nearest_press_map(matching: MatchingEvaluator, touches: TouchSet) -> float | None:
     """Mean-class matching of the map that gives each sample the label of the nearest
     contact point of a press the material loss used (a Voronoi map of the presses)."""
-    used = [(p, lab) for p, lab, u in zip(touches.points, touches.labels, touches.used) if u]
+    used = [
+        (p[lab >= 0], lab[lab >= 0])
+        for t, p in enumerate(touches.points)
+        if touches.used[t] and (lab := touches.labels_of(t)).max() >= 0
+    ]
     if not used:
         return None
     points = np.concatenate([p for p, _ in used])
-    labels = np.concatenate([np.full(len(p), lab) for p, lab in used])
+    labels = np.concatenate([lab for _, lab in used])
     nearest = cKDTree(points).query(matching.points)[1]
     return matching.evaluate_labels(labels[nearest])["matching_mean_class_pct"]
 

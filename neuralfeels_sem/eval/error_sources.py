@@ -41,14 +41,16 @@ DISTANCE_BINS_M = (0.005, 0.01, 0.02, 0.04)  # supported errors by distance to a
 class TouchSet:
     """Touches as the mapper stored them, object frame.
 
-    points: per touch an (n_i, 3) array of contact points; labels: (T,) the label the
-    classifier gave (-1: none); used: (T,) whether the material loss trained on it (a
-    label the vote left out is not used).
+    points: per touch an (n_i, 3) array of contact points; labels: (T,) the touch's label
+    (-1: none); used: (T,) whether the material loss trained on it (a label the vote left
+    out is not used); point_labels: per touch (n_i,) labels of its points when they differ
+    (patch readings), None: every point takes its touch's label.
     """
 
     points: list[np.ndarray]
     labels: np.ndarray
     used: np.ndarray
+    point_labels: list[np.ndarray] | None = None
 
     def __post_init__(self) -> None:
         self.labels = np.asarray(self.labels, dtype=np.int64).reshape(-1)
@@ -57,6 +59,16 @@ class TouchSet:
             raise ValueError(
                 f"{len(self.points)} touches but {len(self.labels)} labels, {len(self.used)} flags"
             )
+        if self.point_labels is not None and [len(p) for p in self.point_labels] != [
+            len(p) for p in self.points
+        ]:
+            raise ValueError("point_labels must hold one label per contact point of each touch")
+
+    def labels_of(self, t: int) -> np.ndarray:
+        """(n_t,) labels of touch t's points."""
+        if self.point_labels is not None:
+            return np.asarray(self.point_labels[t], dtype=np.int64)
+        return np.full(len(self.points[t]), self.labels[t], dtype=np.int64)
 
 
 def face_regions(obj: MaterialObject) -> np.ndarray:
@@ -76,19 +88,18 @@ def face_regions(obj: MaterialObject) -> np.ndarray:
 
 def _pressed_regions(
     obj: MaterialObject, regions: np.ndarray, touches: TouchSet
-) -> list[np.ndarray]:
-    """Per touch, the regions it pressed (at least PRESS_SHARE of its points on them)."""
+) -> list[tuple[np.ndarray, np.ndarray]]:
+    """Per touch, the regions it pressed (at least PRESS_SHARE of its points on them) and
+    the region under each of its points (-1: ignored faces)."""
     if not touches.points:
         return []
     sizes = [len(p) for p in touches.points]
     faces, _ = closest_faces(obj.mesh, np.concatenate(touches.points))
-    owner = np.repeat(np.arange(len(sizes)), sizes)
-    region = regions[faces]
-    pressed: list[np.ndarray] = []
-    for t, size in enumerate(sizes):
-        mine = region[(owner == t) & (region >= 0)]
-        ids, counts = np.unique(mine, return_counts=True)
-        pressed.append(ids[counts >= PRESS_SHARE * size])
+    per_touch = np.split(regions[faces], np.cumsum(sizes)[:-1])
+    pressed = []
+    for region, size in zip(per_touch, sizes):
+        ids, counts = np.unique(region[region >= 0], return_counts=True)
+        pressed.append((ids[counts >= PRESS_SHARE * size], region))
     return pressed
 
 
@@ -100,13 +111,15 @@ def region_cases(
     material = np.full(count, -1, dtype=np.int64)
     material[regions[regions >= 0]] = np.asarray(obj.face_labels)[regions >= 0]
     presses, labelled, right, right_used = (np.zeros(count, dtype=np.int64) for _ in range(4))
-    for t, ids in enumerate(_pressed_regions(obj, regions, touches)):
-        presses[ids] += 1
-        if touches.labels[t] >= 0:
-            labelled[ids] += 1
-            hit = touches.labels[t] == material[ids]
-            right[ids] += hit
-            right_used[ids] += hit & touches.used[t]
+    for t, (ids, point_region) in enumerate(_pressed_regions(obj, regions, touches)):
+        point_labels = touches.labels_of(t)
+        for r in ids:
+            read = point_labels[point_region == r]
+            presses[r] += 1
+            labelled[r] += bool((read >= 0).any())
+            hit = bool((read == material[r]).any())
+            right[r] += hit
+            right_used[r] += hit and bool(touches.used[t])
     cases = [
         "unpressed" if presses[r] == 0
         else "supported" if right_used[r] > 0
@@ -185,7 +198,7 @@ def _supported_distances(
     for m in np.unique(truth[chosen]):
         mine = chosen & (truth == m)
         ok = [
-            p for p, lab, u in zip(touches.points, touches.labels, touches.used) if u and lab == m
+            p[touches.labels_of(t) == m] for t, p in enumerate(touches.points) if touches.used[t]
         ]
         distance = cKDTree(np.concatenate(ok)).query(points[mine])[0]
         counts += np.histogram(distance, bins=bins)[0]

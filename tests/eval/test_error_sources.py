@@ -88,3 +88,21 @@ def test_errors_of_a_supported_region_are_binned_by_distance_to_a_right_press(sp
 def test_touch_set_checks_its_lengths() -> None:
     with pytest.raises(ValueError, match="touches"):
         TouchSet([_press(1.0)], np.array([0, 1]), np.array([True]))
+
+
+def test_a_touch_with_point_labels_supports_each_region_its_points_name(sphere) -> None:
+    # One press across the border at y = 0: its points on either side read their own side.
+    angles = np.linspace(-0.3, 0.3, 64)
+    across = RADIUS * np.column_stack([np.ones(64), angles, np.zeros(64)])
+    across /= np.linalg.norm(across, axis=1, keepdims=True) / RADIUS
+    point_labels = [np.where(across[:, 1] > 0, PLASTIC, FABRIC)]
+    touches = TouchSet([across], np.array([PLASTIC]), np.array([True]), point_labels)
+    report = _sources(sphere, touches)
+    assert {r["material"]: r["case"] for r in report["regions"]} == {
+        "plastic": "supported",
+        "fabric": "supported",
+    }
+    plain = _sources(sphere, TouchSet([across], np.array([PLASTIC]), np.array([True])))
+    assert {r["material"]: r["case"] for r in plain["regions"]}["fabric"] == "mislabelled"
+    with pytest.raises(ValueError, match="point_labels"):
+        TouchSet([across], np.array([0]), np.array([True]), [np.zeros(3)])
