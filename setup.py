@@ -11,6 +11,8 @@ INSTALL_REQUIRES = [
     "numpy>=1.26,<3",
     # Fused CPU kernels of the hash grid and its optimiser (fields/hash_kernels.py).
     "numba>=0.60",
+    # numpy's BLAS threads follow the `threads` setting (utils/device.py).
+    "threadpoolctl>=3.1",
     "scipy>=1.11",
     "hydra-core==1.3.8",
     "omegaconf>=2.3,<2.4",

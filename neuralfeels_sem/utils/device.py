@@ -1,4 +1,5 @@
-"""Pick the torch device (`auto`: CUDA when present, else CPU) and the CPU thread count.
+"""Pick the torch device (`auto`: CUDA when present, else CPU) and the CPU thread count
+(torch's and numpy's BLAS).
 
 `threads` (a root config key, resolved once at start-up by tasks/runner.py):
 - `auto`: OMP_NUM_THREADS when set, else 1 thread. Measured on the project's 2-core
@@ -40,10 +41,18 @@ def resolve_threads(setting: str | int = THREADS_AUTO) -> int:
 
 
 def set_threads(setting: str | int = THREADS_AUTO) -> int:
-    """Set torch's CPU threads from a `threads` setting once, at start-up; returns the count."""
+    """Set torch's CPU threads, and numpy's BLAS threads to the same count, from a `threads`
+    setting once, at start-up; returns the count.
+
+    numpy's OpenBLAS starts one thread per core of its own, outside torch's setting: on a
+    busy 2-core machine its spinning threads made the (N, 3) x (3, 3) point transforms of
+    every camera frame about 20 times more expensive in CPU than one thread does.
+    """
     import torch
+    from threadpoolctl import threadpool_limits
 
     threads = resolve_threads(setting)
     if torch.get_num_threads() != threads:
         torch.set_num_threads(threads)
+    threadpool_limits(limits=threads, user_api="blas")
     return threads

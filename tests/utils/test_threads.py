@@ -2,8 +2,10 @@
 
 from __future__ import annotations
 
+import numpy as np
 import pytest
 import torch
+from threadpoolctl import threadpool_info, threadpool_limits
 
 from neuralfeels_sem.configs import validate_config
 from neuralfeels_sem.core.errors import ConfigError
@@ -20,6 +22,10 @@ def test_auto_is_one_thread_without_omp_num_threads(monkeypatch: pytest.MonkeyPa
     assert resolve_threads("auto") == 1
 
 
+def _blas_threads() -> set[int]:
+    return {pool["num_threads"] for pool in threadpool_info() if pool["user_api"] == "blas"}
+
+
 def test_a_number_is_taken_as_is_and_set_once() -> None:
     before = torch.get_num_threads()
     try:
@@ -27,6 +33,18 @@ def test_a_number_is_taken_as_is_and_set_once() -> None:
         assert set_threads("2") == 2 and torch.get_num_threads() == 2
     finally:
         torch.set_num_threads(before)
+
+
+def test_numpy_blas_follows_the_thread_count() -> None:
+    np.ones((4, 4)) @ np.ones((4, 4))  # numpy's BLAS is loaded
+    before = torch.get_num_threads()
+    with threadpool_limits(limits=2, user_api="blas"):  # restores this process's after
+        assert _blas_threads() == {2}
+        try:
+            assert set_threads("1") == 1
+            assert _blas_threads() == {1}
+        finally:
+            torch.set_num_threads(before)
 
 
 @pytest.mark.parametrize("bad", ["0", "-1", "two", "1.5"])
