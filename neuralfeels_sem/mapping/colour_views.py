@@ -33,6 +33,7 @@ from neuralfeels_sem.core.frame import CameraReading
 from neuralfeels_sem.core.geometry import Intrinsics, invert_pose, transform_points
 
 DARK = 30.0  # r + g + b below this (of 765): too dark for a reliable hue
+MARGIN_PX = 4  # kept around the object's pixels: the bilinear lookup's neighbours
 
 
 def colour_features(rgb: np.ndarray, blur_px: float) -> np.ndarray:
@@ -58,14 +59,16 @@ def pixels_of(reading: CameraReading, points_world: np.ndarray) -> tuple[np.ndar
 @dataclass
 class ColourView:
     """One camera frame's object pixels: their world points, colour features, and the view
-    as a reference for later frames (features, eroded object mask, depth, poses)."""
+    as a reference for later frames (features, eroded object mask, depth, poses), kept for
+    the object's box in the image only (a run keeps many keyframes)."""
 
     index: int
     points_world: np.ndarray  # (P, 3) the object pixels' world points
     colours: np.ndarray  # (P, C) their features
-    features: Tensor  # (C, H, W) float32, the whole image
-    mask: np.ndarray  # (H, W) bool: object pixels away from the silhouette
-    depth: np.ndarray  # (H, W) metres
+    features: Tensor  # (C, h, w) float32, the object's box of the image
+    mask: np.ndarray  # (h, w) bool: object pixels away from the silhouette
+    depth: np.ndarray  # (h, w) metres
+    origin: tuple[int, int]  # image (row, column) of the box's first pixel
     camera_T_world: np.ndarray
     intrinsics: Intrinsics
     world_T_object: np.ndarray  # the pose the view was mapped with (set once known)
@@ -85,13 +88,20 @@ class ColourView:
         mask[rows, cols] = 1
         if erode_px > 0:
             mask = cv2.erode(mask, np.ones((2 * erode_px + 1,) * 2, np.uint8))
+        h, w = mask.shape
+        r0, c0 = max(int(rows.min()) - MARGIN_PX, 0), max(int(cols.min()) - MARGIN_PX, 0)
+        box = np.s_[
+            r0 : min(int(rows.max()) + MARGIN_PX + 1, h),
+            c0 : min(int(cols.max()) + MARGIN_PX + 1, w),
+        ]
         return cls(
             index=index,
             points_world=np.asarray(points_world, np.float64),
             colours=feats[rows, cols],
-            features=torch.from_numpy(np.ascontiguousarray(feats.transpose(2, 0, 1))),
-            mask=mask.astype(bool),
-            depth=np.asarray(reading.depth, np.float64),
+            features=torch.from_numpy(np.ascontiguousarray(feats[box].transpose(2, 0, 1))),
+            mask=mask[box].astype(bool),
+            depth=np.array(reading.depth[box], np.float32),
+            origin=(r0, c0),
             camera_T_world=invert_pose(reading.world_T_camera),
             intrinsics=reading.intrinsics,
             world_T_object=np.eye(4),
@@ -111,7 +121,8 @@ def visible_in(ref: ColourView, q: np.ndarray, max_depth_gap_m: float) -> np.nda
     camera_T_object = ref.camera_T_world @ ref.world_T_object
     u, v, z = _project(camera_T_object, q, ref.intrinsics)
     h, w = ref.mask.shape
-    col, row = np.rint(u).astype(int), np.rint(v).astype(int)
+    col = np.rint(u).astype(int) - ref.origin[1]
+    row = np.rint(v).astype(int) - ref.origin[0]
     inside = (col >= 0) & (col < w) & (row >= 0) & (row < h) & (z > 0)
     col, row = np.clip(col, 0, w - 1), np.clip(row, 0, h - 1)
     seen = ref.depth[row, col]
@@ -128,12 +139,15 @@ def colour_residuals(
     channels = colours.shape[1]
     target = torch.as_tensor(colours, dtype=torch.float32).reshape(-1)
     pick = torch.arange(len(target)) % channels
-    span = torch.tensor([k.width - 1.0, k.height - 1.0])
+    height, width = ref.mask.shape
+    span = torch.tensor([max(width - 1.0, 1.0), max(height - 1.0, 1.0)])
+    origin = torch.tensor([float(ref.origin[1]), float(ref.origin[0])])
 
     def residuals(x: Tensor) -> Tensor:
         cam = x @ camera_T_object[:3, :3].T + camera_T_object[:3, 3]
         z = cam[:, 2].clamp_min(1e-6)
         uv = torch.stack([k.fx * cam[:, 0] / z + k.cx, k.fy * cam[:, 1] / z + k.cy], dim=1)
+        uv = uv - origin  # into the box
         grid = (2.0 * uv / span - 1.0).reshape(1, 1, -1, 2)
         sampled = torch.nn.functional.grid_sample(
             ref.features[None], grid, mode="bilinear", padding_mode="border", align_corners=True
