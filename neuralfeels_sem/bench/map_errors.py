@@ -37,17 +37,7 @@ def touch_set(mapper) -> TouchSet:
     state = buffer.state_dict()
     point_labels = [t.cpu().numpy().astype(np.int64) for t in state["labels"]]
     labels = np.array(state["touch_labels"], dtype=np.int64)
-    used = labels >= 0
-    if buffer.vote is not None and buffer.vote.active and used.any():
-        centroids = torch.stack([p.mean(0) for p in state["points"]])
-        kept = np.flatnonzero(used)
-        outvoted = buffer.vote.outvoted(
-            centroids[kept],
-            torch.as_tensor(labels[kept]),
-            [state["fingers"][i] for i in kept],
-            [state["frames"][i] for i in kept],
-        )
-        used[kept[outvoted.cpu().numpy()]] = False
+    used = (labels >= 0) & ~buffer.outvoted().cpu().numpy()
     points = [p.cpu().numpy().astype(np.float64) for p in state["points"]]
     return TouchSet(points, labels, used, point_labels)
 

@@ -12,6 +12,19 @@ import torch
 from neuralfeels_sem.mapping.keyframes import check_points
 from neuralfeels_sem.mapping.label_vote import LabelVote
 
+# A material counts as read by a touch when at least this share of its labelled points
+# name it: one stray patch at the rim of an imprint does not make the touch back it.
+READ_SHARE = 0.1
+
+
+def materials_read(labels: torch.Tensor) -> tuple[int, ...]:
+    """The materials a touch's point labels name (-1: none), each on >= READ_SHARE of them."""
+    read = labels[labels >= 0]
+    if not len(read):
+        return ()
+    counts = torch.bincount(read)
+    return tuple(int(c) for c in torch.nonzero(counts >= READ_SHARE * len(read)).flatten())
+
 
 class TouchBuffer:
     """Every touch: a fixed number of contact points each, the sensor axis, label and weight.
@@ -30,6 +43,7 @@ class TouchBuffer:
         self._labels: list[torch.Tensor] = []
         self._weights: list[torch.Tensor] = []
         self._touch_labels: list[int] = []  # each touch's label for the vote (-1: none)
+        self._reads: list[tuple[int, ...]] = []  # the materials each touch's points name
         self._fingers: list[str | None] = []  # which finger made each touch (None: unknown)
         self._frames: list[int] = []  # frame index of each touch
         self._cat: dict[str, torch.Tensor] | None = None
@@ -47,7 +61,8 @@ class TouchBuffer:
     ) -> None:
         """Store one touch. `label` -1 keeps it for geometry only; a (n,) tensor gives each
         point its own label (-1: none) and `weight` then is (n,) too (patch readings). The
-        vote sees the touch's most common point label. `finger` and `frame_index` tell the
+        vote judges the touch by its most common point label, and counts it as backing every
+        material its points name (`materials_read`). `finger` and `frame_index` tell the
         vote which touches are frames of one press (None: a press of its own)."""
         check_points(points, "touch points")
         n = points.shape[0]
@@ -56,6 +71,7 @@ class TouchBuffer:
         weights = torch.as_tensor(weight, dtype=torch.float32, device=device).expand(n).clone()
         read = labels[labels >= 0]
         self._touch_labels.append(int(torch.mode(read).values) if len(read) else -1)
+        self._reads.append(materials_read(labels))
         self._fingers.append(finger)
         self._frames.append(int(frame_index))
         self._points.append(points)
@@ -96,20 +112,32 @@ class TouchBuffer:
 
     def _outvoted_points(self) -> torch.Tensor:
         """Per stored point: does its touch get outvoted by its labelled neighbours?"""
+        outvoted = self.outvoted()
+        self._num_outvoted = int(outvoted.sum())
+        sizes = torch.tensor([len(p) for p in self._points], device=self.device)
+        return torch.repeat_interleave(outvoted, sizes)
+
+    def outvoted(self) -> torch.Tensor:
+        """(T,) bool per touch: left out of the material loss by the vote (all False without one)."""
         labels = torch.tensor(self._touch_labels, dtype=torch.long, device=self.device)
-        centroids = torch.stack([p.mean(0) for p in self._points])
-        mine = labels >= 0
-        kept = torch.nonzero(mine).flatten().tolist()
         outvoted = torch.zeros(len(labels), dtype=torch.bool, device=self.device)
+        mine = labels >= 0
+        if self.vote is None or not self.vote.active or not bool(mine.any()):
+            return outvoted
+        centroids = torch.stack([p.mean(0) for p in self._points])
+        kept = torch.nonzero(mine).flatten().tolist()
+        classes = 1 + max(max(r, default=-1) for r in self._reads)
+        reads = torch.zeros(len(kept), classes, dtype=torch.bool, device=self.device)
+        for row, i in enumerate(kept):
+            reads[row, list(self._reads[i])] = True
         outvoted[mine] = self.vote.outvoted(
             centroids[mine],
             labels[mine],
             [self._fingers[i] for i in kept],
             [self._frames[i] for i in kept],
+            reads,
         )
-        self._num_outvoted = int(outvoted.sum())
-        sizes = torch.tensor([len(p) for p in self._points], device=labels.device)
-        return torch.repeat_interleave(outvoted, sizes)
+        return outvoted
 
     @property
     def num_outvoted(self) -> int:
@@ -139,6 +167,7 @@ class TouchBuffer:
         self._touch_labels = [
             int(t) for t in state.get("touch_labels", [int(p[0]) for p in self._labels])
         ]
+        self._reads = [materials_read(t) for t in self._labels]
         # Checkpoints from before presses were recorded: every touch a press of its own.
         self._fingers = list(state.get("fingers", [None] * len(self._points)))
         self._frames = [int(f) for f in state.get("frames", [-1] * len(self._points))]

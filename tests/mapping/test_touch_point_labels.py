@@ -75,3 +75,28 @@ def test_a_touch_with_point_labels_trains_its_labelled_points_and_votes_by_its_m
     del state["touch_labels"]  # a checkpoint from before patch readings
     restored.load_state_dict(state)
     assert restored.num_outvoted == 1
+
+
+def test_a_neighbour_that_reads_a_material_in_some_patches_backs_a_lone_touch_of_it() -> None:
+    from neuralfeels_sem.mapping.label_vote import outvoted_touches
+    from neuralfeels_sem.mapping.touch_memory import materials_read
+
+    c = torch.tensor([[0.0, 0.0, 0.0], [0.02, 0.0, 0.0]])
+    labels = torch.tensor([2, 0])  # a lone fabric press; a plastic press 2 cm away
+    assert outvoted_touches(c, labels, 0.01, 3, 0.25, min_support=1, support_radius=0.04)[0]
+    reads = torch.tensor([[False, False, True], [True, False, True]])  # it read fabric too
+    kept = outvoted_touches(c, labels, 0.01, 3, 0.25, 1, None, 0.04, reads)
+    assert kept.tolist() == [False, True]  # no other press backs the plastic one
+    assert materials_read(torch.tensor([0] * 9 + [2] + [-1] * 5)) == (0, 2)  # 1 of 10: 10 %
+    assert materials_read(torch.tensor([0] * 19 + [2])) == (0,)  # a stray 5 % does not count
+    assert materials_read(torch.tensor([-1, -1])) == ()
+    vote = LabelVote(radius=0.01, min_neighbours=3, min_agreement=0.25, min_support=1,
+                     press_gap=0, support_radius=0.04)  # fmt: skip
+    axis = torch.tensor([0.0, 0.0, 1.0])
+    touches = TouchBuffer(CPU, vote)
+    touches.add(torch.zeros(4, 3), axis, 2, 0.9)
+    touches.add(torch.full((4, 3), 0.02), axis, 0, 0.9)
+    touches.add(torch.full((4, 3), 0.021), axis, 0, 0.9)
+    assert touches.outvoted().tolist() == [True, False, False]
+    touches.add(torch.full((4, 3), 0.019), axis, torch.tensor([0, 0, 0, 2]), torch.ones(4))
+    assert touches.outvoted().tolist() == [False, False, False, False]
