@@ -121,7 +121,8 @@ def run() -> dict:
     from neuralfeels_sem.fields.semantic_field import SemanticField, SemanticFieldConfig
 
     config = SemanticFieldConfig(num_classes=len(CLASSES))
-    field = SemanticField(config, bound=1.15 * obj.bounds_radius)
+    # Frozen, as OnlineMapper.sdf holds it for pose sources (the fused point-gradient path).
+    field = SemanticField(config, bound=1.15 * obj.bounds_radius).requires_grad_(False)
     # An untrained field's SDF is arbitrary: only the time is meaningful here, so the fit
     # checks are off (a rejected solve would be retried and timed twice).
     timing_only = PoseTracker(
@@ -130,7 +131,7 @@ def run() -> dict:
     learned = _track(timing_only, field.sdf, obj, truth)
     learned = {k: learned[k] for k in ("ms_per_frame", "iterations", "sdf_evaluations", "points")}
     learned.update(_pass_ms(timing_only, field.sdf, obj, truth))
-    colour_field = SemanticField(config, bound=0.05)
+    colour_field = SemanticField(config, bound=0.05).requires_grad_(False)
     return {
         "torch_threads": torch.get_num_threads(),
         "grid_96_build_s": round(grid_s, 2),

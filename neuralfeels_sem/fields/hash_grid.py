@@ -11,10 +11,12 @@ With `sparse_grad=True` the table's gradient is a sparse COO tensor holding only
 the batch touched, so an optimiser step costs O(points), not O(table): use
 `neuralfeels_sem.fields.optim.FieldAdam` (plain torch.optim.Adam rejects sparse grads).
 
-On the CPU, float32 points that need no gradient themselves (the mapper's batches and
-every query) go through fused kernels (hash_kernels.py): the same corner rows, weights
-and features, several times less memory traffic. Points that need a gradient (the
-eikonal term, pose tracking) and every other device take the PyTorch path below.
+On the CPU, float32 points go through fused kernels (hash_kernels.py) where either the
+table or the points need a gradient, not both: the mapper's batches, every query, and
+SDF gradients against a table that is not being trained (pose tracking). The same corner
+rows, weights and features, several times less memory traffic. Points and table both
+needing gradients (the eikonal term, which also differentiates the gradient) and every
+other device take the PyTorch path below.
 """
 
 from __future__ import annotations
@@ -179,12 +181,15 @@ class HashGridEncoding(nn.Module):
         """Points (N, 3) in [0, 1]^3 (callers clamp) -> features (N, levels * features)."""
         if x.ndim != 2 or x.shape[1] != 3:
             raise ValueError(f"x must have shape (N, 3), got {tuple(x.shape)}")
-        needs_graph = torch.is_grad_enabled() and (self.table.requires_grad or x.requires_grad)
-        if self._fused(x) and not x.requires_grad:
-            if not needs_graph:
+        grad_on = torch.is_grad_enabled()
+        trains, moves = grad_on and self.table.requires_grad, grad_on and x.requires_grad
+        if self._fused(x):
+            if not trains and not moves:
                 return self._encode_fused(x, keep_corners=False)[0]
-            if self.sparse_grad:
+            if trains and not moves and self.sparse_grad:
                 return _FusedSparseEncode.apply(self.table, x, self)
+            if moves and not trains:  # SDF gradients against a fixed table (pose tracking)
+                return _FusedInputGradEncode.apply(x, self)
         n = x.shape[0]
         idx, weights = self.corner_indices(x)
         idx = idx.reshape(-1)
@@ -325,3 +330,25 @@ class _FusedSparseEncode(torch.autograd.Function):
             is_coalesced=True, check_invariants=False,
         )  # fmt: skip
         return sparse, None, None
+
+
+class _FusedInputGradEncode(torch.autograd.Function):
+    """The encoding by the fused CPU kernel, differentiable with respect to the points only
+    (first order): for SDF gradients against a table that is not trained meanwhile."""
+
+    @staticmethod
+    def forward(ctx, x: Tensor, encoding: HashGridEncoding) -> Tensor:
+        ctx.x, ctx.encoding = x.detach().contiguous(), encoding
+        return encoding._encode_fused(x, keep_corners=False)[0]
+
+    @staticmethod
+    @torch.autograd.function.once_differentiable
+    def backward(ctx, grad: Tensor) -> tuple[Tensor, None]:
+        enc = ctx.encoding
+        grad_x = torch.empty_like(ctx.x)
+        hash_kernels.encode_input_grad(
+            ctx.x.numpy(), enc.table.detach().numpy(), enc._res.numpy(), enc._offsets.numpy(),
+            enc.num_dense_levels, 2**enc.log2_table_size - 1,
+            grad.to(torch.float32).contiguous().numpy(), grad_x.numpy(),
+        )  # fmt: skip
+        return grad_x, None

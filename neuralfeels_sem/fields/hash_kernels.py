@@ -10,7 +10,9 @@ same arithmetic in one loop per pass is several times cheaper:
   keeping the corner rows and weights for the backward;
 - `table_grad`: the table's gradient as sorted distinct rows and their sums, without a
   sort: a bitmap of the rows looked up, scanned in order, numbers them;
-- `adam_rows`: Adam's moment and parameter update on those rows in one pass.
+- `adam_rows`: Adam's moment and parameter update on those rows in one pass;
+- `encode_input_grad`: the features' gradient with respect to the points (SDF gradients
+  for pose tracking, against a table that is not being trained).
 
 Arithmetic follows the PyTorch path operation for operation in float32 (same corner
 order, same weight products), so the corner rows and weights are identical and the
@@ -77,6 +79,44 @@ def encode(x, table, res, offsets, num_dense, mask, rows, weights, out):  # noqa
                 for k in range(8):
                     rows[n, lv, k] = row[k]
                     weights[n, lv, k] = w[k]
+
+
+@njit(cache=True, nogil=True)
+def encode_input_grad(x, table, res, offsets, num_dense, mask, grad_out, grad_x):  # noqa: ANN001
+    """grad_x (N, 3) = (d features / d x)^T grad_out for points x (N, 3), grad_out (N, L * F).
+
+    Per level the features are sum_k w_k table[row_k], w_k = wz * wy * wx of the point's
+    fractions in its cell, and d frac / d x = resolution (the cell is constant inside it)."""
+    n_points, n_levels, n_feat = x.shape[0], res.shape[0], table.shape[1]
+    row = np.empty(8, dtype=np.int64)
+    for n in range(n_points):
+        gx = gy = gz = np.float32(0.0)
+        for lv in range(n_levels):
+            r = res[lv]
+            rf = np.float32(r)
+            cx, fx = _cell(x[n, 0] * rf, r)
+            cy, fy = _cell(x[n, 1] * rf, r)
+            cz, fz = _cell(x[n, 2] * rf, r)
+            _corner_rows(cx, cy, cz, r, offsets[lv], lv < num_dense, mask, row)
+            wx = (_ONE - fx, fx)
+            wy = (_ONE - fy, fy)
+            wz = (_ONE - fz, fz)
+            lx = ly = lz = np.float32(0.0)
+            for k in range(8):
+                t = np.float32(0.0)  # the corner's value along grad_out
+                for f in range(n_feat):
+                    t += table[row[k], f] * grad_out[n, lv * n_feat + f]
+                bx, by, bz = k & 1, (k >> 1) & 1, (k >> 2) & 1
+                sx, sy, sz = np.float32(2 * bx - 1), np.float32(2 * by - 1), np.float32(2 * bz - 1)
+                lx += sx * wz[bz] * wy[by] * t
+                ly += sy * wz[bz] * wx[bx] * t
+                lz += sz * wy[by] * wx[bx] * t
+            gx += rf * lx
+            gy += rf * ly
+            gz += rf * lz
+        grad_x[n, 0] = gx
+        grad_x[n, 1] = gy
+        grad_x[n, 2] = gz
 
 
 @njit(cache=True, nogil=True)

@@ -35,6 +35,7 @@ from neuralfeels_sem.mapping.step_policy import STEPS_POLICIES, steps_for, surpr
 from neuralfeels_sem.perception.camera_segmentation import SegmentationConfig
 from neuralfeels_sem.perception.tactile_depth import TactileDepth, TactileDepthConfig
 from neuralfeels_sem.perception.touch import TouchLabel
+from neuralfeels_sem.utils.frozen import frozen_parameters
 
 LOSS_KEYS = ("total", *TERMS, "points")
 
@@ -206,8 +207,11 @@ class OnlineMapper:
         return self.points(frame, world_T_object)
 
     def sdf(self, x: torch.Tensor) -> torch.Tensor:
-        """The field's signed distance (metres) at object-frame points x (N, 3)."""
-        return self.field.sdf(x)
+        """The field's signed distance (metres) at object-frame points x (N, 3),
+        differentiable with respect to x only: pose sources read the field, they do not
+        train it (and the encoding then takes its fused point-gradient kernel on the CPU)."""
+        with frozen_parameters(self.field):
+            return self.field.sdf(x)
 
     @property
     def has_surface(self) -> bool:

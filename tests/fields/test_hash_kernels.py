@@ -88,11 +88,30 @@ def test_table_gradient_leaves_its_bitmap_clear_for_the_next_call() -> None:
     assert not bitmap.any()
 
 
-def test_points_that_need_a_gradient_keep_the_autograd_path() -> None:
+def test_point_gradients_against_a_fixed_table_agree_with_pytorch() -> None:
+    enc = _encoding()
+    enc.table.requires_grad_(False)  # as pose tracking holds the field
+    x = _points(600, seed=5)
+    upstream = torch.randn(600, enc.out_dim, generator=torch.Generator().manual_seed(6))
+
+    def point_gradient() -> torch.Tensor:
+        points = x.clone().requires_grad_(True)
+        return torch.autograd.grad((enc(points) * upstream).sum(), points)[0]
+
+    fused, reference = _both_paths(enc, point_gradient)
+    assert fused.abs().sum() > 0
+    torch.testing.assert_close(fused, reference, rtol=1e-4, atol=1e-5)
+
+
+def test_points_and_table_both_needing_gradients_keep_the_autograd_path() -> None:
+    """The eikonal term differentiates the point gradient once more, with respect to the
+    table: only the PyTorch path supports that."""
     enc = _encoding()
     x = _points(50, seed=5).requires_grad_(True)
-    (grad_x,) = torch.autograd.grad(enc(x).sum(), x)
+    (grad_x,) = torch.autograd.grad(enc(x).pow(2).sum(), x, create_graph=True)
+    grad_x.pow(2).sum().backward()
     assert torch.isfinite(grad_x).all() and grad_x.abs().sum() > 0
+    assert enc.table.grad is not None and enc.table.grad._values().abs().sum() > 0
 
 
 def _train(fused: bool, steps: int = 8) -> dict[str, torch.Tensor]:
