@@ -56,13 +56,17 @@ class LabelVote:
         labels: torch.Tensor,
         fingers: list[str | None],
         frames: list[int],
-        reads: torch.Tensor | None = None,
+        touch_of: torch.Tensor | None = None,
     ) -> torch.Tensor:
         """(T,) bool over labelled touches (centroids (T, 3), labels (T,), in frame order).
 
-        `reads` (T, C) bool: the materials each touch's patch readings name (None: its label
-        alone); a neighbour agrees with a touch when it reads the touch's label anywhere."""
+        With `touch_of` the vote is over items, each one material a touch read (patch
+        readings): (I,) centroids and labels of the items and the touch of each; `fingers`
+        and `frames` stay per touch, and the items of one touch are one press.
+        """
         events = press_events(fingers, frames, self.press_gap).to(labels.device)
+        if touch_of is not None:
+            events = events[touch_of.to(labels.device)]
         return outvoted_touches(
             centroids,
             labels,
@@ -72,28 +76,19 @@ class LabelVote:
             self.min_support,
             events,
             self.support_radius,
-            reads,
         )
 
 
 def _neighbour_counts(
-    distances: torch.Tensor,
-    labels: torch.Tensor,
-    radius: float,
-    events: torch.Tensor | None,
-    reads: torch.Tensor | None = None,
+    distances: torch.Tensor, labels: torch.Tensor, radius: float, events: torch.Tensor | None
 ) -> tuple[torch.Tensor, torch.Tensor]:
     """(T,) other touches (presses, with `events`) within `radius`, and those that agree.
 
-    `distances` (T, T) between the touches' centroids; `reads` (T, C): the materials each
-    touch names (None: its label); touch j agrees with touch i when it names i's label.
+    `distances` (T, T) between the touches' centroids.
     """
     near = distances < radius
     near.fill_diagonal_(False)
-    if reads is None:
-        agreeing = near & (labels[None, :] == labels[:, None])
-    else:
-        agreeing = near & reads[:, labels].T
+    agreeing = near & (labels[None, :] == labels[:, None])
     if events is None:
         return near.sum(1), agreeing.sum(1)
     near &= events[None, :] != events[:, None]
@@ -114,7 +109,6 @@ def outvoted_touches(
     min_support: int = 0,
     events: torch.Tensor | None = None,
     support_radius: float | None = None,
-    reads: torch.Tensor | None = None,
 ) -> torch.Tensor:
     """(T,) bool: labelled touches that their labelled neighbours contradict or do not back.
 
@@ -124,9 +118,7 @@ def outvoted_touches(
     own patch. A touch with few neighbours, e.g. on a small patch of another material
     with touches of its own, is kept, unless fewer than `min_support` touches within
     `support_radius` (default `radius`) carry its label: a lone wrong touch where nobody
-    else touched paints the largest patch. With `reads` ((T, C) bool, the materials each
-    touch's patch readings name) a neighbour carries every material it reads, not only its
-    most common one: a press across a border backs both sides.
+    else touched paints the largest patch.
 
     `events` (T,) groups touches into presses (see `press_events`): neighbours and
     agreeing neighbours are then counted as other presses, not frames. The frames of one
@@ -141,14 +133,12 @@ def outvoted_touches(
         return torch.zeros(len(labels), dtype=torch.bool, device=labels.device)
     if events is not None and events.shape != labels.shape:
         raise ValueError(f"expected (T,) events for {len(labels)} touches, got {events.shape}")
-    if reads is not None and reads.shape[0] != len(labels):
-        raise ValueError(f"expected (T, C) reads for {len(labels)} touches, got {reads.shape}")
     distances = torch.cdist(centroids, centroids)
-    neighbours, agree = _neighbour_counts(distances, labels, radius, events, reads)
+    neighbours, agree = _neighbour_counts(distances, labels, radius, events)
     outvoted = (neighbours >= min_neighbours) & (agree < min_agreement * neighbours)
     if min_support > 0:
         if support_radius is not None and support_radius != radius:
-            _, agree = _neighbour_counts(distances, labels, support_radius, events, reads)
+            _, agree = _neighbour_counts(distances, labels, support_radius, events)
         outvoted |= agree < min_support
     return outvoted
 

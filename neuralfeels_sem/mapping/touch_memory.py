@@ -17,6 +17,11 @@ from neuralfeels_sem.mapping.label_vote import LabelVote
 READ_SHARE = 0.1
 
 
+def _read_mask(labels: torch.Tensor, read: tuple[int, ...]) -> torch.Tensor:
+    """Points whose label is one of the materials the touch reads."""
+    return torch.isin(labels, torch.tensor(read, dtype=labels.dtype, device=labels.device))
+
+
 def materials_read(labels: torch.Tensor) -> tuple[int, ...]:
     """The materials a touch's point labels name (-1: none), each on >= READ_SHARE of them."""
     read = labels[labels >= 0]
@@ -38,6 +43,7 @@ class TouchBuffer:
         self.device = device
         self.vote = vote
         self._num_outvoted = 0  # set with the cached tensors; read through num_outvoted
+        self._items_outvoted = 0
         self._points: list[torch.Tensor] = []
         self._axes: list[torch.Tensor] = []
         self._labels: list[torch.Tensor] = []
@@ -61,8 +67,7 @@ class TouchBuffer:
     ) -> None:
         """Store one touch. `label` -1 keeps it for geometry only; a (n,) tensor gives each
         point its own label (-1: none) and `weight` then is (n,) too (patch readings). The
-        vote judges the touch by its most common point label, and counts it as backing every
-        material its points name (`materials_read`). `finger` and `frame_index` tell the
+        vote judges each material the touch reads on its own (`point_labels_used`). `finger` and `frame_index` tell the
         vote which touches are frames of one press (None: a press of its own)."""
         check_points(points, "touch points")
         n = points.shape[0]
@@ -111,33 +116,46 @@ class TouchBuffer:
         return self._cat
 
     def _outvoted_points(self) -> torch.Tensor:
-        """Per stored point: does its touch get outvoted by its labelled neighbours?"""
-        outvoted = self.outvoted()
-        self._num_outvoted = int(outvoted.sum())
-        sizes = torch.tensor([len(p) for p in self._points], device=self.device)
-        return torch.repeat_interleave(outvoted, sizes)
+        """Per stored point: is its label left out (its touch's reading of that material
+        outvoted, or named by too few of the touch's points to count as read)?"""
+        kept = self.point_labels_used()
+        self._num_outvoted = self._items_outvoted
+        return torch.cat([(lab >= 0) & (k < 0) for lab, k in zip(self._labels, kept)])
+
+    def point_labels_used(self) -> list[torch.Tensor]:
+        """Per touch, its point labels with -1 where the material loss leaves them out.
+
+        The vote runs over items, each one material a touch reads (`materials_read`), at
+        the centroid of the points that read it: a plain touch is one item, as before patch
+        readings; a touch across a border is one item per side, each judged on its own."""
+        items = [(t, m) for t, read in enumerate(self._reads) for m in read]
+        self._items_outvoted = 0
+        out = [
+            torch.where(_read_mask(lab, r), lab, -1) for lab, r in zip(self._labels, self._reads)
+        ]
+        if self.vote is None or not self.vote.active or not items:
+            return out
+        touch = torch.tensor([t for t, _ in items], device=self.device)
+        labels = torch.tensor([m for _, m in items], device=self.device)
+        centroids = torch.stack([self._points[t][self._labels[t] == m].mean(0) for t, m in items])
+        outvoted = self.vote.outvoted(centroids, labels, self._fingers, self._frames, touch)
+        self._items_outvoted = int(outvoted.sum())
+        for (t, m), dropped in zip(items, outvoted.tolist()):
+            if dropped:
+                out[t] = torch.where(out[t] == m, -1, out[t])
+        return out
 
     def outvoted(self) -> torch.Tensor:
-        """(T,) bool per touch: left out of the material loss by the vote (all False without one)."""
-        labels = torch.tensor(self._touch_labels, dtype=torch.long, device=self.device)
-        outvoted = torch.zeros(len(labels), dtype=torch.bool, device=self.device)
-        mine = labels >= 0
-        if self.vote is None or not self.vote.active or not bool(mine.any()):
-            return outvoted
-        centroids = torch.stack([p.mean(0) for p in self._points])
-        kept = torch.nonzero(mine).flatten().tolist()
-        classes = 1 + max(max(r, default=-1) for r in self._reads)
-        reads = torch.zeros(len(kept), classes, dtype=torch.bool, device=self.device)
-        for row, i in enumerate(kept):
-            reads[row, list(self._reads[i])] = True
-        outvoted[mine] = self.vote.outvoted(
-            centroids[mine],
-            labels[mine],
-            [self._fingers[i] for i in kept],
-            [self._frames[i] for i in kept],
-            reads,
+        """(T,) bool: labelled touches the vote leaves out entirely (all False without one)."""
+        kept = self.point_labels_used()
+        return torch.tensor(
+            [
+                bool((lab >= 0).any()) and not bool((k >= 0).any())
+                for lab, k in zip(self._labels, kept)
+            ],
+            dtype=torch.bool,
+            device=self.device,
         )
-        return outvoted
 
     @property
     def num_outvoted(self) -> int:

@@ -52,51 +52,56 @@ def test_each_contact_point_takes_the_label_of_the_pixel_it_came_from() -> None:
     assert (touch_point_labels(reading, points, world_T_object, None)[0] == -1).all()
 
 
-def test_a_touch_with_point_labels_trains_its_labelled_points_and_votes_by_its_mode() -> None:
-    vote = LabelVote(radius=0.01, min_neighbours=3, min_agreement=0.25, min_support=0,
-                     press_gap=0, support_radius=None)  # fmt: skip
-    touches = TouchBuffer(CPU, vote)
-    axis = torch.tensor([0.0, 0.0, 1.0])
-    mixed = torch.tensor([2, 2, 2, 0, 0, -1])
-    touches.add(torch.zeros(6, 3), axis, mixed, torch.full((6,), 0.9))
-    tensors = touches.tensors()
-    assert tensors["labelled_labels"].tolist() == [2, 2, 2, 0, 0]
+def _vote(min_support: int = 0) -> LabelVote:
+    return LabelVote(radius=0.01, min_neighbours=3, min_agreement=0.25, min_support=min_support,
+                     press_gap=0, support_radius=0.04)  # fmt: skip
+
+
+AXIS = torch.tensor([0.0, 0.0, 1.0])
+
+
+def test_each_material_a_touch_reads_is_voted_on_by_itself() -> None:
+    touches = TouchBuffer(CPU, _vote())
+    # A press across a border: fabric on x < 0, plastic on x > 0 (and one unread point).
+    points = torch.tensor([[-0.004, 0, 0]] * 3 + [[0.004, 0, 0]] * 2 + [[0.0, 0, 0]])
+    touches.add(points, AXIS, torch.tensor([2, 2, 2, 0, 0, -1]), torch.full((6,), 0.9))
+    assert touches.tensors()["labelled_labels"].tolist() == [2, 2, 2, 0, 0]
     assert touches.num_labelled == 1 and touches.state_dict()["touch_labels"] == [2]
-    # Three neighbours read 0: the mixed touch's vote label (2) is outvoted, all its points go.
+    # Three presses read plastic 8 mm from the fabric side's centroid: they outvote the
+    # fabric reading and back the plastic one; the touch keeps its plastic points.
     for _ in range(3):
-        touches.add(torch.full((2, 3), 0.001), axis, 0, 0.9)
+        touches.add(torch.full((2, 3), 0.0) + torch.tensor([0.004, 0, 0]), AXIS, 0, 0.9)
     assert touches.num_outvoted == 1
-    assert touches.tensors()["labelled_labels"].tolist() == [0, 0, 0, 0, 0, 0]
+    kept = touches.point_labels_used()
+    assert kept[0].tolist() == [-1, -1, -1, 0, 0, -1]
+    assert touches.outvoted().tolist() == [False, False, False, False]
+    assert touches.tensors()["labelled_labels"].tolist() == [0] * 8
+    # A stray reading on fewer than a tenth of a touch's points is not a reading at all.
+    stray = TouchBuffer(CPU, _vote())
+    stray.add(torch.zeros(20, 3), AXIS, torch.tensor([0] * 19 + [2]), torch.ones(20))
+    assert stray.tensors()["labelled_labels"].tolist() == [0] * 19
     unlabelled = TouchBuffer(CPU)
-    unlabelled.add(torch.zeros(3, 3), axis, torch.tensor([-1, -1, -1]), torch.zeros(3))
+    unlabelled.add(torch.zeros(3, 3), AXIS, torch.tensor([-1, -1, -1]), torch.zeros(3))
     assert unlabelled.num_labelled == 0 and unlabelled.state_dict()["touch_labels"] == [-1]
-    restored = TouchBuffer(CPU, vote)
+    restored = TouchBuffer(CPU, _vote())
     state = touches.state_dict()
     del state["touch_labels"]  # a checkpoint from before patch readings
     restored.load_state_dict(state)
     assert restored.num_outvoted == 1
 
 
-def test_a_neighbour_that_reads_a_material_in_some_patches_backs_a_lone_touch_of_it() -> None:
-    from neuralfeels_sem.mapping.label_vote import outvoted_touches
+def test_a_press_that_grazes_an_insert_backs_the_inserts_own_press() -> None:
     from neuralfeels_sem.mapping.touch_memory import materials_read
 
-    c = torch.tensor([[0.0, 0.0, 0.0], [0.02, 0.0, 0.0]])
-    labels = torch.tensor([2, 0])  # a lone fabric press; a plastic press 2 cm away
-    assert outvoted_touches(c, labels, 0.01, 3, 0.25, min_support=1, support_radius=0.04)[0]
-    reads = torch.tensor([[False, False, True], [True, False, True]])  # it read fabric too
-    kept = outvoted_touches(c, labels, 0.01, 3, 0.25, 1, None, 0.04, reads)
-    assert kept.tolist() == [False, True]  # no other press backs the plastic one
     assert materials_read(torch.tensor([0] * 9 + [2] + [-1] * 5)) == (0, 2)  # 1 of 10: 10 %
     assert materials_read(torch.tensor([0] * 19 + [2])) == (0,)  # a stray 5 % does not count
     assert materials_read(torch.tensor([-1, -1])) == ()
-    vote = LabelVote(radius=0.01, min_neighbours=3, min_agreement=0.25, min_support=1,
-                     press_gap=0, support_radius=0.04)  # fmt: skip
-    axis = torch.tensor([0.0, 0.0, 1.0])
-    touches = TouchBuffer(CPU, vote)
-    touches.add(torch.zeros(4, 3), axis, 2, 0.9)
-    touches.add(torch.full((4, 3), 0.02), axis, 0, 0.9)
-    touches.add(torch.full((4, 3), 0.021), axis, 0, 0.9)
-    assert touches.outvoted().tolist() == [True, False, False]
-    touches.add(torch.full((4, 3), 0.019), axis, torch.tensor([0, 0, 0, 2]), torch.ones(4))
+    touches = TouchBuffer(CPU, _vote(min_support=1))
+    touches.add(torch.zeros(4, 3), AXIS, 2, 0.9)  # the insert's own press: fabric
+    touches.add(torch.full((4, 3), 0.02), AXIS, 0, 0.9)  # plastic around it
+    touches.add(torch.full((4, 3), 0.021), AXIS, 0, 0.9)
+    assert touches.outvoted().tolist() == [True, False, False]  # nobody else read fabric
+    grazing = torch.tensor([[0.015, 0.0, 0.0]] * 3 + [[0.008, 0.0, 0.0]])
+    touches.add(grazing, AXIS, torch.tensor([0, 0, 0, 2]), torch.ones(4))
     assert touches.outvoted().tolist() == [False, False, False, False]
+    assert touches.point_labels_used()[3].tolist() == [0, 0, 0, 2]
