@@ -279,7 +279,7 @@ class OnlineMapper:
         """One optimiser step on a fresh batch; returns its losses."""
         batch = self.sampler.sample()
         # One pass for geometry and material points: the hash grid dominates the cost.
-        out = self.field(batch.x)
+        out = self.field(batch.x, material_from=len(batch.x) - len(batch.material_labels))
         losses, per_sample = self.objective.losses(self.field, batch, out)
         if batch.camera is not None:
             camera_loss = per_sample[: len(batch.camera.samples)].detach()

@@ -68,7 +68,8 @@ class MapperObjective:
             sdf_space = out["sdf"][n_geo : n_geo + n_space]
             losses["space"] = space_prior_loss(sdf_space, batch.space_sign).mean()
         if len(batch.material_labels):
-            logits = out["material_logits"][n_geo + n_space :]
+            # The material rows come last (the field may return logits for them alone).
+            logits = out["material_logits"][-len(batch.material_labels) :]
             losses["material"] = material_loss(
                 logits, batch.material_labels, batch.material_weights
             ).mean()

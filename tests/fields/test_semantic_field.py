@@ -297,3 +297,15 @@ def test_material_grid_gradcheck() -> None:
 def test_material_grid_settings_are_range_checked(key: str, value) -> None:
     with pytest.raises(ValueError, match=f"model.material.{key}="):
         MaterialHeadConfig(**{"grid_levels": 2, key: value})
+
+
+def test_material_logits_for_the_last_rows_only_equal_those_of_every_row() -> None:
+    field = _field()
+    x = _points(40)
+    every, last = field(x), field(x, material_from=30)
+    assert last["material_logits"].shape == (10, 3)
+    torch.testing.assert_close(last["material_logits"], every["material_logits"][30:])
+    torch.testing.assert_close(last["sdf"], every["sdf"])
+    assert field(x, material_from=40)["material_logits"].shape == (0, 3)
+    with pytest.raises(ValueError, match="material_from"):
+        field(x, material_from=41)
