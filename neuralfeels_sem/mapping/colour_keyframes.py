@@ -146,10 +146,35 @@ class ColourKeyframes:
         if view is None:
             return
         view.world_T_object = np.asarray(world_T_object, np.float64).copy()
-        self.previous = view
+        self.previous = view.as_reference()
         far = all(
             turned_deg(k.world_T_object, view.world_T_object) > self.config.keyframe_angle_deg
             for k in self.keyframes
         )
         if far and (tracked or not self.keyframes):
             self.keyframes.append(view)
+
+    def state(self) -> dict:
+        """The previous view, the keyframes and the pixel sampler's state (for resume)."""
+        keyframe_ids = {id(k) for k in self.keyframes}
+        previous = self.previous
+        return {
+            "keyframes": [k.state() for k in self.keyframes],
+            # the previous view is usually the newest keyframe: stored once
+            "previous": None
+            if previous is None or id(previous) in keyframe_ids
+            else previous.state(),
+            "previous_index": None if previous is None else int(previous.index),
+            "generator": self.generator.get_state(),
+        }
+
+    def load_state(self, state: dict) -> None:
+        self.keyframes = [ColourView.from_state(k) for k in state.get("keyframes", [])]
+        self.previous = None
+        if state.get("previous") is not None:
+            self.previous = ColourView.from_state(state["previous"])
+        elif state.get("previous_index") is not None:
+            by_index = {k.index: k for k in self.keyframes}
+            self.previous = by_index.get(int(state["previous_index"]))
+        if state.get("generator") is not None:
+            self.generator.set_state(state["generator"])

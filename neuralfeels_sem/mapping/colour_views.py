@@ -107,6 +107,45 @@ class ColourView:
             world_T_object=np.eye(4),
         )
 
+    def as_reference(self) -> ColourView:
+        """The view once it only serves as a reference: its pixels' points and colours
+        (used while it is the current frame) are dropped, the image box kept."""
+        self.points_world = np.zeros((0, 3))
+        self.colours = np.zeros((0, self.colours.shape[1]), np.float32)
+        return self
+
+    def state(self) -> dict:
+        """A reference view as tensors and plain values (checkpoints load weights-only)."""
+        return {
+            "index": int(self.index),
+            "features": self.features.clone(),
+            "mask": torch.from_numpy(self.mask.copy()),
+            "depth": torch.from_numpy(self.depth.copy()),
+            "origin": [int(v) for v in self.origin],
+            "camera_T_world": torch.from_numpy(np.array(self.camera_T_world, np.float64)),
+            "intrinsics": {
+                k: v.item() if hasattr(v, "item") else v
+                for k, v in self.intrinsics.to_dict().items()
+            },
+            "world_T_object": torch.from_numpy(np.array(self.world_T_object, np.float64)),
+        }
+
+    @classmethod
+    def from_state(cls, state: dict) -> ColourView:
+        channels = int(state["features"].shape[0])
+        return cls(
+            index=int(state["index"]),
+            points_world=np.zeros((0, 3)),
+            colours=np.zeros((0, channels), np.float32),
+            features=state["features"].clone(),
+            mask=state["mask"].numpy().copy(),
+            depth=state["depth"].numpy().copy(),
+            origin=(int(state["origin"][0]), int(state["origin"][1])),
+            camera_T_world=state["camera_T_world"].numpy().copy(),
+            intrinsics=Intrinsics(**state["intrinsics"]),
+            world_T_object=state["world_T_object"].numpy().copy(),
+        )
+
 
 def _project(camera_T_object: np.ndarray, q: np.ndarray, k: Intrinsics):
     cam = q @ camera_T_object[:3, :3].T + camera_T_object[:3, 3]

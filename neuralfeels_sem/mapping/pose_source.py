@@ -312,6 +312,8 @@ class TrackedPose(PoseSource):
             "degenerate_frames": self.degenerate_frames,
             "colourless_frames": self.colourless_frames,
             "track_seconds": self.track_seconds,
+            "colour": self.colour.state(),
+            "generator": self.tracker.generator.get_state(),
         }
 
     def load_state(self, state: dict) -> None:
@@ -324,6 +326,9 @@ class TrackedPose(PoseSource):
         self.degenerate_frames = int(state.get("degenerate_frames", 0))
         self.colourless_frames = int(state.get("colourless_frames", 0))
         self.track_seconds = float(state.get("track_seconds", 0.0))
+        self.colour.load_state(state.get("colour", {}))
+        if state.get("generator") is not None:
+            self.tracker.generator.set_state(state["generator"])
         if self.history:
             self.last_estimate = self.history[-1]
 

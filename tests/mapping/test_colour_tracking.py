@@ -107,6 +107,26 @@ def test_keyframes_pull_drift_back_on_return() -> None:
     assert errors[1] < 0.5
 
 
+def test_resume_restores_the_colour_views(tmp_path) -> None:
+    """A source resumed from its state (through a weights-only checkpoint file) keeps its
+    keyframes and previous view, and continues exactly as one that never stopped."""
+    poses = turning(8, 3.0)
+    straight = sphere_source(keyframe_angle_deg=5.0)
+    last = track(straight, poses)
+    first = sphere_source(keyframe_angle_deg=5.0)
+    track(first, poses[:4])
+    torch.save(first.state(), tmp_path / "pose.pt")
+    resumed = sphere_source(keyframe_angle_deg=5.0)
+    resumed.load_state(torch.load(tmp_path / "pose.pt", weights_only=True))
+    assert [k.index for k in resumed.colour.keyframes] == [k.index for k in first.colour.keyframes]
+    assert resumed.colour.previous.index == 3
+    mapper = SphereMapper()
+    for k, gt in enumerate(poses[4:], start=4):
+        again = resumed.estimate(frame_of(k, gt), mapper)
+    np.testing.assert_array_equal(again, last)
+    assert resumed.metrics()["pose_colour_keyframes"] == straight.metrics()["pose_colour_keyframes"]
+
+
 def test_features_pixels_and_keyframe_choice() -> None:
     reading = render(turning(1, 0.0)[0])
     feats = colour_features(reading.rgb, blur_px=0.0)
