@@ -67,8 +67,9 @@ class TouchBuffer:
     ) -> None:
         """Store one touch. `label` -1 keeps it for geometry only; a (n,) tensor gives each
         point its own label (-1: none) and `weight` then is (n,) too (patch readings). The
-        vote judges each material the touch reads on its own (`point_labels_used`). `finger` and `frame_index` tell the
-        vote which touches are frames of one press (None: a press of its own)."""
+        vote judges each material the touch reads on its own (`point_labels_used`).
+        `finger` and `frame_index` tell the vote which touches are frames of one press (None:
+        a press of its own)."""
         check_points(points, "touch points")
         n = points.shape[0]
         device = points.device
@@ -135,10 +136,16 @@ class TouchBuffer:
         ]
         if self.vote is None or not self.vote.active or not items:
             return out
-        touch = torch.tensor([t for t, _ in items], device=self.device)
+        # Presses are chained over labelled touches only: a geometry-only touch between two
+        # frames of a finger must not join presses the vote would count apart.
+        labelled = sorted({t for t, _ in items})
+        rank = {t: i for i, t in enumerate(labelled)}
+        touch = torch.tensor([rank[t] for t, _ in items], device=self.device)
         labels = torch.tensor([m for _, m in items], device=self.device)
         centroids = torch.stack([self._points[t][self._labels[t] == m].mean(0) for t, m in items])
-        outvoted = self.vote.outvoted(centroids, labels, self._fingers, self._frames, touch)
+        fingers = [self._fingers[t] for t in labelled]
+        frames = [self._frames[t] for t in labelled]
+        outvoted = self.vote.outvoted(centroids, labels, fingers, frames, touch)
         self._items_outvoted = int(outvoted.sum())
         for (t, m), dropped in zip(items, outvoted.tolist()):
             if dropped:

@@ -105,3 +105,17 @@ def test_a_press_that_grazes_an_insert_backs_the_inserts_own_press() -> None:
     touches.add(grazing, AXIS, torch.tensor([0, 0, 0, 2]), torch.ones(4))
     assert touches.outvoted().tolist() == [False, False, False, False]
     assert touches.point_labels_used()[3].tolist() == [0, 0, 0, 2]
+
+
+def test_a_geometry_only_touch_does_not_join_two_presses() -> None:
+    # A finger reads fabric at frames 0 and 6 and abstains at frame 3: with a press gap of
+    # 4 frames the two readings are two presses that back each other. Chaining presses
+    # over the abstained touch would make them one press that backs nobody.
+    vote = LabelVote(radius=0.01, min_neighbours=3, min_agreement=0.25, min_support=1,
+                     press_gap=4, support_radius=0.04)  # fmt: skip
+    touches = TouchBuffer(CPU, vote)
+    touches.add(torch.zeros(4, 3), AXIS, 2, 0.9, finger="index", frame_index=0)
+    touches.add(torch.zeros(4, 3), AXIS, -1, 0.0, finger="index", frame_index=3)
+    touches.add(torch.full((4, 3), 0.002), AXIS, 2, 0.9, finger="index", frame_index=6)
+    assert touches.outvoted().tolist() == [False, False, False]
+    assert touches.num_outvoted == 0
