@@ -17,11 +17,6 @@ from neuralfeels_sem.mapping.label_vote import LabelVote
 READ_SHARE = 0.1
 
 
-def _read_mask(labels: torch.Tensor, read: tuple[int, ...]) -> torch.Tensor:
-    """Points whose label is one of the materials the touch reads."""
-    return torch.isin(labels, torch.tensor(read, dtype=labels.dtype, device=labels.device))
-
-
 def materials_read(labels: torch.Tensor) -> tuple[int, ...]:
     """The materials a touch's point labels name (-1: none), each on >= READ_SHARE of them."""
     read = labels[labels >= 0]
@@ -49,7 +44,10 @@ class TouchBuffer:
         self._labels: list[torch.Tensor] = []
         self._weights: list[torch.Tensor] = []
         self._touch_labels: list[int] = []  # each touch's label for the vote (-1: none)
-        self._reads: list[tuple[int, ...]] = []  # the materials each touch's points name
+        # The vote's items, one per material a touch reads: touch, material, centroid.
+        self._item_touch: list[int] = []
+        self._item_label: list[int] = []
+        self._item_centroid: list[torch.Tensor] = []
         self._fingers: list[str | None] = []  # which finger made each touch (None: unknown)
         self._frames: list[int] = []  # frame index of each touch
         self._cat: dict[str, torch.Tensor] | None = None
@@ -77,7 +75,7 @@ class TouchBuffer:
         weights = torch.as_tensor(weight, dtype=torch.float32, device=device).expand(n).clone()
         read = labels[labels >= 0]
         self._touch_labels.append(int(torch.mode(read).values) if len(read) else -1)
-        self._reads.append(materials_read(labels))
+        self._add_items(len(self._points), points, labels)
         self._fingers.append(finger)
         self._frames.append(int(frame_index))
         self._points.append(points)
@@ -119,9 +117,45 @@ class TouchBuffer:
     def _outvoted_points(self) -> torch.Tensor:
         """Per stored point: is its label left out (its touch's reading of that material
         outvoted, or named by too few of the touch's points to count as read)?"""
-        kept = self.point_labels_used()
+        labels = torch.cat(self._labels)
+        left_out = (labels >= 0) & (self._used_flat(labels) < 0)
         self._num_outvoted = self._items_outvoted
-        return torch.cat([(lab >= 0) & (k < 0) for lab, k in zip(self._labels, kept)])
+        return left_out
+
+    def _used_flat(self, labels: torch.Tensor) -> torch.Tensor:
+        """All touches' point labels (`labels`, concatenated) with -1 where left out."""
+        self._items_outvoted = 0
+        if not self._item_touch:
+            return torch.full_like(labels, -1)
+        touch_of_point = self._touch_of_point(labels.device)
+        classes = int(max(labels.max().item(), max(self._item_label))) + 1
+        item_touch = torch.tensor(self._item_touch, device=labels.device)
+        item_label = torch.tensor(self._item_label, device=labels.device)
+        kept = ~self._items_dropped(item_touch, item_label)
+        # (touch, material) -> is that reading kept; unread materials stay False.
+        keep = torch.zeros(len(self._labels) * classes, dtype=torch.bool, device=labels.device)
+        keep[item_touch * classes + item_label] = kept
+        ok = keep[touch_of_point * classes + labels.clamp_min(0)] & (labels >= 0)
+        return torch.where(ok, labels, -1)
+
+    def _touch_of_point(self, device: torch.device) -> torch.Tensor:
+        """The touch index of every stored point, in storage order."""
+        sizes = torch.tensor([len(lab) for lab in self._labels], device=device)
+        return torch.repeat_interleave(torch.arange(len(sizes), device=device), sizes)
+
+    def _items_dropped(self, item_touch: torch.Tensor, item_label: torch.Tensor) -> torch.Tensor:
+        """(I,) bool: items (one material a touch reads) the vote leaves out."""
+        if self.vote is None or not self.vote.active:
+            return torch.zeros(len(item_touch), dtype=torch.bool, device=item_touch.device)
+        # Presses are chained over labelled touches only: a geometry-only touch between two
+        # frames of a finger must not join presses the vote would count apart.
+        labelled, touch = torch.unique(item_touch, return_inverse=True)
+        fingers = [self._fingers[t] for t in labelled.tolist()]
+        frames = [self._frames[t] for t in labelled.tolist()]
+        centroids = torch.stack(self._item_centroid).to(item_touch.device)
+        dropped = self.vote.outvoted(centroids, item_label, fingers, frames, touch)
+        self._items_outvoted = int(dropped.sum())
+        return dropped
 
     def point_labels_used(self) -> list[torch.Tensor]:
         """Per touch, its point labels with -1 where the material loss leaves them out.
@@ -129,40 +163,32 @@ class TouchBuffer:
         The vote runs over items, each one material a touch reads (`materials_read`), at
         the centroid of the points that read it: a plain touch is one item, as before patch
         readings; a touch across a border is one item per side, each judged on its own."""
-        items = [(t, m) for t, read in enumerate(self._reads) for m in read]
-        self._items_outvoted = 0
-        out = [
-            torch.where(_read_mask(lab, r), lab, -1) for lab, r in zip(self._labels, self._reads)
-        ]
-        if self.vote is None or not self.vote.active or not items:
-            return out
-        # Presses are chained over labelled touches only: a geometry-only touch between two
-        # frames of a finger must not join presses the vote would count apart.
-        labelled = sorted({t for t, _ in items})
-        rank = {t: i for i, t in enumerate(labelled)}
-        touch = torch.tensor([rank[t] for t, _ in items], device=self.device)
-        labels = torch.tensor([m for _, m in items], device=self.device)
-        centroids = torch.stack([self._points[t][self._labels[t] == m].mean(0) for t, m in items])
-        fingers = [self._fingers[t] for t in labelled]
-        frames = [self._frames[t] for t in labelled]
-        outvoted = self.vote.outvoted(centroids, labels, fingers, frames, touch)
-        self._items_outvoted = int(outvoted.sum())
-        for (t, m), dropped in zip(items, outvoted.tolist()):
-            if dropped:
-                out[t] = torch.where(out[t] == m, -1, out[t])
-        return out
+        if not self._labels:
+            return []
+        used = self._used_flat(torch.cat(self._labels))
+        return list(torch.split(used, [len(lab) for lab in self._labels]))
 
     def outvoted(self) -> torch.Tensor:
         """(T,) bool: labelled touches the vote leaves out entirely (all False without one)."""
-        kept = self.point_labels_used()
-        return torch.tensor(
-            [
-                bool((lab >= 0).any()) and not bool((k >= 0).any())
-                for lab, k in zip(self._labels, kept)
-            ],
-            dtype=torch.bool,
-            device=self.device,
+        if not self._labels:
+            return torch.zeros(0, dtype=torch.bool, device=self.device)
+        labels = torch.cat(self._labels)
+        used = self._used_flat(labels)
+        touch_of_point = self._touch_of_point(labels.device)
+        read = torch.zeros(len(self._labels), device=labels.device).index_add_(
+            0, touch_of_point, (labels >= 0).float()
         )
+        kept = torch.zeros(len(self._labels), device=labels.device).index_add_(
+            0, touch_of_point, (used >= 0).float()
+        )
+        return (read > 0) & (kept == 0)
+
+    def _add_items(self, touch: int, points: torch.Tensor, labels: torch.Tensor) -> None:
+        """Record the materials a touch reads and the centroid of the points reading each."""
+        for material in materials_read(labels):
+            self._item_touch.append(touch)
+            self._item_label.append(material)
+            self._item_centroid.append(points[labels == material].mean(0))
 
     @property
     def num_outvoted(self) -> int:
@@ -192,7 +218,9 @@ class TouchBuffer:
         self._touch_labels = [
             int(t) for t in state.get("touch_labels", [int(p[0]) for p in self._labels])
         ]
-        self._reads = [materials_read(t) for t in self._labels]
+        self._item_touch, self._item_label, self._item_centroid = [], [], []
+        for touch, (points, labels) in enumerate(zip(self._points, self._labels)):
+            self._add_items(touch, points, labels)
         # Checkpoints from before presses were recorded: every touch a press of its own.
         self._fingers = list(state.get("fingers", [None] * len(self._points)))
         self._frames = [int(f) for f in state.get("frames", [-1] * len(self._points))]
