@@ -59,15 +59,7 @@ def encode(x, table, res, offsets, num_dense, mask, rows, weights, out):  # noqa
     w = np.empty(8, dtype=np.float32)
     for n in range(n_points):
         for lv in range(n_levels):
-            r = res[lv]
-            rf = np.float32(r)
-            cx, fx = _cell(x[n, 0] * rf, r)
-            cy, fy = _cell(x[n, 1] * rf, r)
-            cz, fz = _cell(x[n, 2] * rf, r)
-            _corner_rows(cx, cy, cz, r, offsets[lv], lv < num_dense, mask, row)
-            wx = (_ONE - fx, fx)
-            wy = (_ONE - fy, fy)
-            wz = (_ONE - fz, fz)
+            wx, wy, wz = _locate(x, n, res[lv], offsets[lv], lv < num_dense, mask, row)
             for k in range(8):
                 w[k] = wz[k >> 2] * wy[(k >> 1) & 1] * wx[k & 1]
             for f in range(n_feat):
@@ -92,15 +84,8 @@ def encode_input_grad(x, table, res, offsets, num_dense, mask, grad_out, grad_x)
     for n in range(n_points):
         gx = gy = gz = np.float32(0.0)
         for lv in range(n_levels):
-            r = res[lv]
-            rf = np.float32(r)
-            cx, fx = _cell(x[n, 0] * rf, r)
-            cy, fy = _cell(x[n, 1] * rf, r)
-            cz, fz = _cell(x[n, 2] * rf, r)
-            _corner_rows(cx, cy, cz, r, offsets[lv], lv < num_dense, mask, row)
-            wx = (_ONE - fx, fx)
-            wy = (_ONE - fy, fy)
-            wz = (_ONE - fz, fz)
+            rf = np.float32(res[lv])
+            wx, wy, wz = _locate(x, n, res[lv], offsets[lv], lv < num_dense, mask, row)
             lx = ly = lz = np.float32(0.0)
             for k in range(8):
                 t = np.float32(0.0)  # the corner's value along grad_out
@@ -117,6 +102,18 @@ def encode_input_grad(x, table, res, offsets, num_dense, mask, grad_out, grad_x)
         grad_x[n, 0] = gx
         grad_x[n, 1] = gy
         grad_x[n, 2] = gz
+
+
+@njit(cache=True, nogil=True)
+def _locate(x, n, r, offset, dense, mask, row):  # noqa: ANN001, ANN202
+    """Point n's cell at resolution r: its 8 corner rows into `row`, and the (1 - f, f)
+    trilinear weight pairs along x, y and z."""
+    rf = np.float32(r)
+    cx, fx = _cell(x[n, 0] * rf, r)
+    cy, fy = _cell(x[n, 1] * rf, r)
+    cz, fz = _cell(x[n, 2] * rf, r)
+    _corner_rows(cx, cy, cz, r, offset, dense, mask, row)
+    return (_ONE - fx, fx), (_ONE - fy, fy), (_ONE - fz, fz)
 
 
 @njit(cache=True, nogil=True)
