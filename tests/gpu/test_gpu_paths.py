@@ -68,7 +68,11 @@ def test_tactile_depth_network_on_the_gpu_matches_the_cpu() -> None:
     images, backgrounds = _tactile_frames()
     cpu = DepthNetPredictor(device="cpu").predict(images, backgrounds)
     gpu = DepthNetPredictor(device="cuda").predict(images, backgrounds)
-    np.testing.assert_allclose(gpu, cpu, atol=2e-5)
+    # The contact mask thresholds the network's output: rounding may flip a pixel at its
+    # edge (seen: 1 of 307200 on an H100); every other pixel agrees to float rounding.
+    off = np.abs(gpu - cpu) > 2e-5
+    assert off.mean() <= 1e-4, f"{off.sum()} of {off.size} depth pixels differ"
+    np.testing.assert_allclose(gpu[~off], cpu[~off], atol=2e-5)
 
 
 def test_classifier_on_the_gpu_gives_the_cpu_labels() -> None:
