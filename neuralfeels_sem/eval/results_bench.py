@@ -86,6 +86,19 @@ FIGURES: tuple[tuple[str, str, str, str], ...] = (
         "peak memory added, 2^24 step and SDF query",
         "MB",
     ),
+    (
+        "field",
+        "cuda_cpu_default_log2_19_sparse.steps_per_s",
+        "field step on the GPU, 4096 points, 2^19",
+        "steps/s",
+    ),
+    (
+        "field",
+        "cuda_paper_log2_24_sparse.steps_per_s",
+        "field step on the GPU, 4096 points, 2^24",
+        "steps/s",
+    ),
+    ("field", "cuda_paper_log2_24_sparse.peak_gpu_mb", "GPU memory, 2^24 step", "MB"),
     ("mapper", "steps_per_s", "mapper step (default config)", "steps/s"),
     ("mapper", "steps_per_s_by_threads.1.steps_per_s", "mapper step, 1 thread", "steps/s"),
     ("mapper", "steps_per_s_by_threads.2.steps_per_s", "mapper step, 2 threads", "steps/s"),
@@ -104,6 +117,12 @@ FIGURES: tuple[tuple[str, str, str, str], ...] = (
         "default_run_cuda_log2_24.realtime_factor",
         "default run on the GPU, 2^24 table: sensor time / loop time",
         "x",
+    ),
+    (
+        "mapper",
+        "default_run_cuda_log2_24.matching_mean_class_pct",
+        "default run on the GPU, 2^24 table: mean-class matching",
+        "%",
     ),
     ("mapper", "frame_points_ms", "mapper frame points (perception)", "ms/frame"),
     ("mapper", "add_frame_per_s", "mapper frames (points + steps)", "frames/s"),
@@ -192,12 +211,16 @@ def bench_lines(report: dict, source: str) -> list[str]:
     ]
 
 
-def speed_section(bench: Path | None) -> Sequence[str]:
-    if bench is None:
+def speed_section(benches: Sequence[Path]) -> Sequence[str]:
+    """One speed table per report: each machine's figures apart, with what it was."""
+    if not benches:
         return []
     intro = [
         "Speed, and the other figures the benchmarks measure on the way (segmentation IoU,",
         "checkpoint and recording sizes).",
         "",
     ]
-    return ["", "## Speed", "", *intro, *bench_lines(load_bench(bench), bench.as_posix())]
+    tables = []
+    for bench in benches:
+        tables += [*bench_lines(load_bench(bench), bench.as_posix()), ""]
+    return ["", "## Speed", "", *intro, *tables[:-1]]

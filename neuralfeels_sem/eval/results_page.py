@@ -21,7 +21,8 @@ The page has these parts:
 - every other setting (ablations, runs with overrides), one table per source;
 - shipped checkpoints: the held-out figures in the reports beside the shipped networks
   (results_assets.py);
-- speed, from a `make bench` report (`--bench bench.json`), each figure with its load;
+- speed, from `make bench` reports (`--bench bench.json`, repeated for each machine, a
+  GPU's too), each figure with its load;
 - per source: the simulator oracles the runs used, the machine and load where recorded,
   and when the runs finished.
 A run belongs to the first two parts when it ran today's default config: its only overrides
@@ -255,7 +256,7 @@ def settings_sections(sources: Sequence[Source]) -> list[str]:
     return lines if other else lines + ["No runs with other settings.", ""]
 
 
-def render(sources: Sequence[Source], command: str, bench: Path | None = None) -> str:
+def render(sources: Sequence[Source], command: str, benches: Sequence[Path] = ()) -> str:
     runs = table_runs(sources)
     lines = [
         "# Results",
@@ -277,7 +278,7 @@ def render(sources: Sequence[Source], command: str, bench: Path | None = None) -
         *resume_section(sources),
         *settings_sections(sources),
         *assets_section(),
-        *speed_section(bench),
+        *speed_section(benches),
         "",
         "## Sources",
         "",
@@ -318,10 +319,10 @@ def update_readme(path: Path, sources: Sequence[Source]) -> None:
 def build_command(
     out: Path | None,
     dirs: Sequence[str],
-    bench: Path | None = None,
+    benches: Sequence[Path] = (),
     readme: Path | None = None,
 ) -> str:
     parts = [COMMAND] + ([f"--out {display_path(out)}"] if out is not None else [])
     parts += [f"--readme {display_path(readme)}"] if readme is not None else []
-    parts += [f"--bench {display_path(bench)}"] if bench is not None else []
+    parts += [f"--bench {display_path(bench)}" for bench in benches]
     return " ".join(parts + [display_path(Path(d)) for d in dirs])

@@ -80,7 +80,12 @@ def main(argv: Sequence[str] | None = None) -> int:
         "--readme", type=Path, help="also rewrite this README's results table (between markers)"
     )
     parser.add_argument(
-        "--bench", type=Path, help="a `make bench` report (bench.json) for the speed section"
+        "--bench",
+        type=Path,
+        action="append",
+        default=[],
+        help="a `make bench` report (bench.json) for the speed section; repeat for reports "
+        "from other machines (one with a GPU)",
     )
     parser.add_argument("dirs", nargs="+", metavar="DIR", help="run or sweep directory")
     args = parser.parse_args(argv)

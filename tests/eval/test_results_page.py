@@ -390,6 +390,35 @@ def test_speed_section_shows_the_bench_figures_with_their_load(
     assert "## Speed" not in generate(tmp_path / "again", object_sweep)  # only with --bench
 
 
+def test_each_bench_report_gets_its_own_speed_table(tmp_path: Path, object_sweep: Path) -> None:
+    cpu = write_bench(tmp_path / "bench.json", {"mapper": {"steps_per_s": 8.04}})
+    gpu = tmp_path / "bench_gpu.json"
+    gpu.write_text(
+        json.dumps(
+            {
+                "machine": {"cpu_count": 16, "cuda_device": "NVIDIA H100 80GB HBM3"},
+                "started": "2026-11-26T08:45:31",
+                "results": {
+                    "field": {"cuda_paper_log2_24_sparse": {"steps_per_s": 232.3}},
+                    "mapper": {"default_run_cuda_log2_24": {"realtime_factor": 0.207}},
+                },
+            }
+        )
+    )
+    out = tmp_path / "results.md"
+    assert (
+        main(["--out", str(out), "--bench", str(cpu), "--bench", str(gpu), str(object_sweep)]) == 0
+    )
+    page = out.read_text()
+    assert f"--bench {cpu} --bench {gpu}" in page.split("```")[1]
+    speed = section(page, "Speed")
+    first, second = speed.split(f"From `{gpu.as_posix()}`")
+    assert "8.04 steps/s" in first and "232.3" not in first
+    assert "cuda_device NVIDIA H100 80GB HBM3" in second
+    assert "| field step on the GPU, 4096 points, 2^24 | 232.3 steps/s | - |" in second
+    assert "| default run on the GPU, 2^24 table: sensor time / loop time | 0.207 x |" in second
+
+
 def test_a_bad_bench_report_is_one_line(
     tmp_path: Path, object_sweep: Path, capsys: pytest.CaptureFixture
 ) -> None:
