@@ -238,9 +238,19 @@ def own_section_runs(source: Source) -> list[Run]:
 
 def table_runs(sources: Sequence[Source]) -> list[Run]:
     """The runs of the object, perception and settings tables: all but those of a section
-    of their own."""
+    of their own, and default-config repeats: a run of an object, seed and oracles that an
+    earlier run on the page already gives at today's defaults (e.g. the baseline a live-view
+    source reruns beside its view) would count that seed twice."""
     own = {id(r) for s in sources for r in own_section_runs(s)}
-    return [r for s in sources for r in s.runs if id(r) not in own]
+    seen, out = set(), []
+    for run in (r for s in sources for r in s.runs if id(r) not in own):
+        key = (run.object, run.seed, oracles_of(run)[0])
+        if not run.setting:
+            if key in seen:
+                continue
+            seen.add(key)
+        out.append(run)
+    return out
 
 
 def settings_sections(sources: Sequence[Source]) -> list[str]:

@@ -439,3 +439,18 @@ def test_single_material_runs_with_a_setting_get_classifier_figures(tmp_path: Pa
     assert "classifier acc. on judged touches %" in other
     assert "mean-class % per seed" not in other  # a constant map scores 100 % there
     assert cells(other, "object=candle_holder")[4:6] == ["90.0 ± 0.0", "50.0 ± 0.0"]
+
+
+def test_a_default_run_repeated_in_another_source_counts_once(
+    tmp_path: Path, object_sweep: Path
+) -> None:
+    # A live-view source reruns its baseline (today's defaults, patched_toy seed 0) beside
+    # the run with the view: the object table must not hold seed 0 twice.
+    view = tmp_path / "multirun" / "view"
+    base = run_metrics(12.0, 96.0, 50.0, 54.0, "plastic", oracles=["object_pose", "camera_mask"])
+    write_job(view, "0", ["object=patched_toy", "seed=0"], base)
+    write_job(view, "1", ["object=patched_toy", "seed=0", "viz.live=rerun"], base)
+    page = generate(tmp_path, object_sweep, view)
+    row = cells(section(page, "Multi-material objects"), "`patched_toy`")
+    assert row[3] == ", ".join(f"{v:.1f}" for v in PATCHED)  # the repeat's 12.0 left out
+    assert "viz.live=rerun" in section(page, "Other settings")
