@@ -99,6 +99,30 @@ class _SingleSampleRenderer(_pyrender_renderer.Renderer):
         return colour.reshape(height, width, channels)[::-1], depth
 
 
+def _handle(egl_object) -> int | None:  # noqa: ANN001 - a PyOpenGL EGL handle
+    """The address behind an EGL handle (None for a null one), to compare handles."""
+    import ctypes
+
+    if egl_object is None:
+        return None
+    return ctypes.cast(egl_object, ctypes.c_void_p).value
+
+
+def _current_egl() -> tuple:
+    """(display, draw surface, read surface, context address, context) current here."""
+    from OpenGL.EGL import (
+        EGL_DRAW,
+        EGL_READ,
+        eglGetCurrentContext,
+        eglGetCurrentDisplay,
+        eglGetCurrentSurface,
+    )
+
+    context = eglGetCurrentContext()
+    surfaces = (eglGetCurrentSurface(EGL_DRAW), eglGetCurrentSurface(EGL_READ))
+    return (eglGetCurrentDisplay(), *surfaces, _handle(context), context)
+
+
 class _OffscreenKeepingDisplay(pyrender.OffscreenRenderer):
     """OffscreenRenderer whose delete() frees only its own EGL context.
 
@@ -122,10 +146,15 @@ class _OffscreenKeepingDisplay(pyrender.OffscreenRenderer):
         from OpenGL.EGL import EGL_NO_CONTEXT, EGL_NO_SURFACE, eglDestroyContext, eglMakeCurrent
 
         if platform._egl_context is not None:
+            # The garbage collector may delete a renderer in the middle of another one's
+            # render on this thread: that one gets its context back afterwards.
+            previous = _current_egl()
             platform.make_current()
             self._renderer.delete()
             eglMakeCurrent(platform._egl_display, EGL_NO_SURFACE, EGL_NO_SURFACE, EGL_NO_CONTEXT)
             eglDestroyContext(platform._egl_display, platform._egl_context)
+            if previous[3] is not None and previous[3] != _handle(platform._egl_context):
+                eglMakeCurrent(*previous[:3], previous[4])
             platform._egl_context = None
         platform._egl_display = None  # the platform's own __del__ would eglTerminate it
         self._renderer = None
