@@ -38,7 +38,6 @@ class TouchBuffer:
         self.device = device
         self.vote = vote
         self._num_outvoted = 0  # set with the cached tensors; read through num_outvoted
-        self._items_outvoted = 0
         self._points: list[torch.Tensor] = []
         self._axes: list[torch.Tensor] = []
         self._labels: list[torch.Tensor] = []
@@ -118,25 +117,25 @@ class TouchBuffer:
         """Per stored point: is its label left out (its touch's reading of that material
         outvoted, or named by too few of the touch's points to count as read)?"""
         labels = torch.cat(self._labels)
-        left_out = (labels >= 0) & (self._used_flat(labels) < 0)
-        self._num_outvoted = self._items_outvoted
-        return left_out
+        used, self._num_outvoted = self._used_flat(labels, self._touch_of_point(labels.device))
+        return (labels >= 0) & (used < 0)
 
-    def _used_flat(self, labels: torch.Tensor) -> torch.Tensor:
-        """All touches' point labels (`labels`, concatenated) with -1 where left out."""
-        self._items_outvoted = 0
+    def _used_flat(
+        self, labels: torch.Tensor, touch_of_point: torch.Tensor
+    ) -> tuple[torch.Tensor, int]:
+        """All touches' point labels (`labels`, concatenated; `touch_of_point` their touch
+        indices) with -1 where left out, and how many items the vote left out."""
         if not self._item_touch:
-            return torch.full_like(labels, -1)
-        touch_of_point = self._touch_of_point(labels.device)
+            return torch.full_like(labels, -1), 0
         classes = int(max(labels.max().item(), max(self._item_label))) + 1
         item_touch = torch.tensor(self._item_touch, device=labels.device)
         item_label = torch.tensor(self._item_label, device=labels.device)
-        kept = ~self._items_dropped(item_touch, item_label)
+        dropped = self._items_dropped(item_touch, item_label)
         # (touch, material) -> is that reading kept; unread materials stay False.
         keep = torch.zeros(len(self._labels) * classes, dtype=torch.bool, device=labels.device)
-        keep[item_touch * classes + item_label] = kept
+        keep[item_touch * classes + item_label] = ~dropped
         ok = keep[touch_of_point * classes + labels.clamp_min(0)] & (labels >= 0)
-        return torch.where(ok, labels, -1)
+        return torch.where(ok, labels, -1), int(dropped.sum())
 
     def _touch_of_point(self, device: torch.device) -> torch.Tensor:
         """The touch index of every stored point, in storage order."""
@@ -153,9 +152,7 @@ class TouchBuffer:
         fingers = [self._fingers[t] for t in labelled.tolist()]
         frames = [self._frames[t] for t in labelled.tolist()]
         centroids = torch.stack(self._item_centroid).to(item_touch.device)
-        dropped = self.vote.outvoted(centroids, item_label, fingers, frames, touch)
-        self._items_outvoted = int(dropped.sum())
-        return dropped
+        return self.vote.outvoted(centroids, item_label, fingers, frames, touch)
 
     def point_labels_used(self) -> list[torch.Tensor]:
         """Per touch, its point labels with -1 where the material loss leaves them out.
@@ -165,7 +162,8 @@ class TouchBuffer:
         readings; a touch across a border is one item per side, each judged on its own."""
         if not self._labels:
             return []
-        used = self._used_flat(torch.cat(self._labels))
+        labels = torch.cat(self._labels)
+        used, _ = self._used_flat(labels, self._touch_of_point(labels.device))
         return list(torch.split(used, [len(lab) for lab in self._labels]))
 
     def outvoted(self) -> torch.Tensor:
@@ -173,8 +171,8 @@ class TouchBuffer:
         if not self._labels:
             return torch.zeros(0, dtype=torch.bool, device=self.device)
         labels = torch.cat(self._labels)
-        used = self._used_flat(labels)
         touch_of_point = self._touch_of_point(labels.device)
+        used, _ = self._used_flat(labels, touch_of_point)
         read = torch.zeros(len(self._labels), device=labels.device).index_add_(
             0, touch_of_point, (labels >= 0).float()
         )
