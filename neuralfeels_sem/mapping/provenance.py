@@ -20,6 +20,11 @@ from neuralfeels_sem.utils.nested import flatten
 # and `bound`, declared (0.1) but always replaced by the one computed from the object.
 NOT_MODEL_SETTINGS = ("_target_", "_convert_", "bound")
 
+# Settings whose default changed after they were added: the value a checkpoint written
+# before the setting existed ran with (model.material.grid_levels came with default 0, no
+# material grid; the default became 4 later).
+BEFORE_THEY_EXISTED = {"model.material.grid_levels": 0}
+
 
 def object_hash(obj) -> str:
     """A short hash of a MaterialObject's mesh, face labels and class names."""
@@ -79,12 +84,13 @@ def _declared_defaults(cls) -> dict:
 
 
 def _default_settings() -> dict:
-    return flat_settings(_declared_defaults(SemanticFieldConfig))
+    """What a setting missing from an older checkpoint's config ran with."""
+    return flat_settings(_declared_defaults(SemanticFieldConfig)) | BEFORE_THEY_EXISTED
 
 
 def comparable_settings(saved: dict, current: dict) -> tuple[dict, dict]:
-    """Both model configs flattened; a setting added after `saved` was written takes its
-    default there (a new setting's default keeps the behaviour from before it existed), so
+    """Both model configs flattened; a setting added after `saved` was written takes there
+    the value that kept the behaviour from before it existed (its default when added), so
     older checkpoints of an unchanged model still resume."""
     saved_flat, current_flat = flat_settings(saved), flat_settings(current)
     defaults = _default_settings()

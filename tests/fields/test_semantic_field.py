@@ -58,7 +58,7 @@ def test_material_depends_on_sdf_features_only_with_concat(concat: bool) -> None
         field.encoding.table.add_(1.0)  # changes z(x) everywhere
     after = field.material_logits(x)
     assert torch.allclose(before, after) is not concat
-    expected_in = 16 + 3 + (64 if concat else 0)
+    expected_in = 16 + 3 + (64 if concat else 0) + 4 * 2  # SH, x, z(x), material grid
     assert field.material_head.mlp.in_dim == expected_in
 
 
@@ -249,7 +249,9 @@ def test_material_grid_adds_its_features_to_the_material_input_only() -> None:
     grid = field.material_head.grid
     assert grid is not None and grid.out_dim == 3 * 2
     assert field.material_head.mlp.in_dim == 16 + 3 + 64 + 6
-    assert _field().material_head.grid is None  # the paper's branch by default
+    assert _field().material_head.grid is not None  # the default has one
+    paper = make_field(3, encoding=TINY, material=MaterialHeadConfig(grid_levels=0))
+    assert paper.material_head.grid is None  # the paper's branch
     x = _points()
     sdf_before, logits_before = field.sdf(x), field.material_logits(x)
     with torch.no_grad():

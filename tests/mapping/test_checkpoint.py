@@ -142,8 +142,9 @@ def test_a_checkpoint_from_before_bound_left_the_model_config_still_loads(tmp_pa
 
 
 def test_a_checkpoint_from_before_a_setting_existed_resumes_at_its_default(tmp_path) -> None:
-    """model.material.grid_levels came later; its default (0, no grid) is what older
-    checkpoints ran, so they resume with it and are refused with any other value."""
+    """model.material.grid_levels came later with default 0 (no grid), what older
+    checkpoints ran; its default is 4 now, but they still resume at 0 and are refused with
+    any other value."""
     path = tmp_path / "checkpoint.pt"
     mapper = make_mapper()
     feed(mapper, FRAMES[:1])
