@@ -24,6 +24,23 @@ IGNORED_PREFIXES = ("object.", "hydra.")
 IGNORED_KEYS = frozenset({"seed", "viz.plots"})
 _MISSING = object()
 
+# Config-group options removed since, with the option that composes the same config today
+# (None: the group's default). model=semantic_sdf_material_grid was semantic_sdf with
+# model.material.grid_levels=4, which became semantic_sdf's own default.
+RETIRED_OPTIONS: dict[tuple[str, str], str | None] = {
+    ("model", "semantic_sdf_material_grid"): None,
+}
+
+
+def current_overrides(overrides: dict[str, str]) -> dict[str, str]:
+    """A run's overrides with retired group options replaced by today's equivalent."""
+    out = {}
+    for key, value in overrides.items():
+        now = RETIRED_OPTIONS.get((key, value), value)
+        if now is not None:
+            out[key] = now
+    return out
+
 
 def same_value(a: Any, b: Any) -> bool:
     """Equal as config values: 20 and 20.0 are the same, True and 1 are not."""

@@ -41,6 +41,7 @@ from neuralfeels_sem.core.errors import DataError
 from neuralfeels_sem.eval.results_assets import assets_section
 from neuralfeels_sem.eval.results_bench import speed_section
 from neuralfeels_sem.eval.results_drift import show
+from neuralfeels_sem.eval.results_generated import generated_section, is_generated
 from neuralfeels_sem.eval.results_policy import is_policy_run, policy_section
 from neuralfeels_sem.eval.results_pose import pose_runs, pose_section
 from neuralfeels_sem.eval.results_resume import resume_pairs, resume_section
@@ -229,11 +230,14 @@ def perception_section(runs: Sequence[Run]) -> list[str]:
 
 
 def own_section_runs(source: Source) -> list[Run]:
-    """Tracked runs (with their `pose=gt` partners), active-touch runs and resume pairs:
-    they have sections of their own, not the object or settings tables."""
+    """Tracked runs (with their `pose=gt` partners), active-touch runs, resume pairs and
+    runs on generated objects: they have sections of their own, not the object or settings
+    tables."""
     tracked, partners = pose_runs(source)
     resumed = [r for pair in resume_pairs(source) for r in pair]
-    return tracked + partners + resumed + [r for r in source.runs if is_policy_run(r)]
+    own = tracked + partners + resumed + [r for r in source.runs if is_policy_run(r)]
+    taken = {id(r) for r in own}
+    return own + [r for r in source.runs if is_generated(r) and id(r) not in taken]
 
 
 def table_runs(sources: Sequence[Source]) -> list[Run]:
@@ -283,6 +287,7 @@ def render(sources: Sequence[Source], command: str, benches: Sequence[Path] = ()
         *material_sections(runs),
         *perception_section(runs),
         *uncertainty_section(sources, runs),
+        *generated_section(sources),
         *pose_section(sources, runs),
         *policy_section(sources, runs),
         *resume_section(sources),

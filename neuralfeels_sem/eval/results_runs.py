@@ -14,7 +14,7 @@ import yaml
 from neuralfeels_sem.core.errors import DataError
 from neuralfeels_sem.eval.aggregate import read_job
 from neuralfeels_sem.eval.oracles import ORACLES, oracles_used
-from neuralfeels_sem.eval.results_drift import drift, redundant, show
+from neuralfeels_sem.eval.results_drift import current_overrides, drift, redundant, show
 
 # Overrides that do not change what a run measures.
 # `perception` (a preset of oracles) is not a setting here: the object tables have an
@@ -139,7 +139,7 @@ def _load_yaml(path: Path) -> Any:
 def _overrides(run_dir: Path) -> dict[str, str]:
     raw = _load_yaml(run_dir / ".hydra" / "overrides.yaml") or []
     items = [str(o) for o in raw if "=" in str(o)] if isinstance(raw, list) else []
-    return dict(o.lstrip("+~").split("=", 1) for o in items)
+    return current_overrides(dict(o.lstrip("+~").split("=", 1) for o in items))
 
 
 def _run(run_dir: Path, metrics: dict | None = None) -> Run:

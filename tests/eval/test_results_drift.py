@@ -10,6 +10,7 @@ import yaml
 from omegaconf import OmegaConf
 
 from neuralfeels_sem.eval.results_drift import (
+    current_overrides,
     drift,
     group_overrides,
     redundant,
@@ -93,3 +94,12 @@ def test_a_run_made_before_a_default_changed_is_shown_with_its_setting(tmp_path:
     sources = section(page, "Sources")
     assert "defaults changed since these runs" in sources
     assert f"(today {today['sensor']['duration_s']})" in sources
+
+
+def test_a_retired_group_option_reads_as_the_option_that_composes_it_today() -> None:
+    # model=semantic_sdf_material_grid was semantic_sdf with the material grid that is now
+    # semantic_sdf's default: such a run ran today's model, not another setting.
+    assert current_overrides({"model": "semantic_sdf_material_grid", "seed": "1"}) == {"seed": "1"}
+    assert current_overrides({"model": "semantic_sdf_no_concat"}) == {
+        "model": "semantic_sdf_no_concat"
+    }

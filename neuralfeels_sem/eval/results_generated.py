@@ -1,0 +1,214 @@
+"""The generated-objects section of the results page: `object=random` runs, objects nobody tuned on.
+
+Per source and setting, a row per generated object (its seed, shape family and material
+regions): mean-class matching beside the majority map, the classifier's accuracy and
+coverage, and the AUROC of the map's entropy against its errors; then the mean over the
+objects, how many reach TARGET_PCT and the lowest. A source that ran several settings on
+the same objects first gets a comparison, pooled on the objects every setting ran.
+"""
+
+from __future__ import annotations
+
+from collections.abc import Sequence
+
+from neuralfeels_sem.eval.results_runs import Run, Source, get
+from neuralfeels_sem.eval.results_tables import (
+    fmt,
+    majority_cells,
+    mean,
+    mean_std,
+    oracles_cell,
+    table,
+    values_of,
+)
+
+TARGET_PCT = 80.0  # the per-object floor the unseen-objects benchmark asks for
+EVALUATION_SEEDS_FROM = 1000  # object seeds from here on are the evaluation set
+GENERATION = "config.object_generation"  # what make_random_object built (metrics.json)
+FIGURES = (  # (metrics key, scale, digits) of the per-object columns after the majority map
+    ("classifier_accuracy.overall", 100.0, 1),
+    ("classifier_accuracy.coverage", 100.0, 1),
+    ("uncertainty.auroc", 1.0, 2),
+)
+FIGURE_HEADER = ["classifier acc. %", "coverage %", "`auroc`"]
+
+
+def is_generated(run: Run) -> bool:
+    return get(run.metrics, GENERATION) is not None
+
+
+def object_seed(run: Run) -> int:
+    return int(get(run.metrics, f"{GENERATION}.seed"))
+
+
+def setting_text(run: Run) -> str:
+    """The run's setting less the object's seed ("today's defaults" when that is all) and
+    the oracles it used."""
+    rest = {k: v for k, v in run.setting.items() if k != "object.seed"}
+    setting = ", ".join(f"`{k}={v}`" for k, v in sorted(rest.items())) or "today's defaults"
+    return f"{setting} (oracles: {oracles_cell(run)})"
+
+
+def by_object(runs: Sequence[Run]) -> dict[int, list[Run]]:
+    groups: dict[int, list[Run]] = {}
+    for run in sorted(runs, key=object_seed):
+        groups.setdefault(object_seed(run), []).append(run)
+    return groups
+
+
+def object_means(runs: Sequence[Run]) -> dict[int, float]:
+    """{object seed: mean-class % over its runs} (objects without the figure left out)."""
+    out = {}
+    for seed, members in by_object(runs).items():
+        values = values_of(members, "matching_mean_class_pct")
+        if values:
+            out[seed] = mean(values)
+    return out
+
+
+def reach_cells(per_object: dict[int, float]) -> list[str]:
+    """[objects at or above the target 'k of n', the lowest object 'x (seed s)']."""
+    if not per_object:
+        return ["n/a", "n/a"]
+    low = min(per_object, key=per_object.get)
+    at_target = sum(v >= TARGET_PCT for v in per_object.values())
+    return [f"{at_target} of {len(per_object)}", f"{fmt(per_object[low])} (seed {low})"]
+
+
+def describe(run: Run) -> list[str]:
+    made = get(run.metrics, GENERATION)
+    size = made.get("size_m")
+    shape = f"{made.get('family', '?')}, {fmt(100.0 * size, 0)} cm" if size else "?"
+    regions = ", ".join(made.get("regions") or [])
+    return [shape, f"{len(made.get('materials') or [])}: {regions}"]
+
+
+def object_rows(runs: Sequence[Run]) -> list[list[str]]:
+    rows = []
+    for seed, members in by_object(runs).items():
+        floor, _ = majority_cells(members)
+        rows.append(
+            [
+                str(seed),
+                *describe(members[0]),
+                str(len(members)),
+                fmt(mean(values_of(members, "matching_mean_class_pct"))),
+                floor,
+                *(fmt(mean(values_of(members, k, s)), d) for k, s, d in FIGURES),
+            ]
+        )
+    return rows
+
+
+def summary_row(runs: Sequence[Run]) -> list[str]:
+    """Mean ± std over objects (each object's runs averaged first)."""
+    groups = by_object(runs).values()
+
+    def over_objects(key: str, scale: float = 1.0) -> list[float]:
+        return [m for g in groups if (m := mean(values_of(g, key, scale))) is not None]
+
+    floors = over_objects("baseline_majority.matching_mean_class_pct")
+    return [
+        "**mean**",
+        "",
+        "",
+        str(len(runs)),
+        f"**{mean_std(over_objects('matching_mean_class_pct'))}**",
+        fmt(mean(floors)),
+        *(mean_std(over_objects(k, s), d) for k, s, d in FIGURES),
+    ]
+
+
+OBJECT_HEADER = [
+    "object seed",
+    "shape",
+    "materials: regions",
+    "runs",
+    "mean-class %",
+    "majority map % (material)",
+    *FIGURE_HEADER,
+]
+
+
+def setting_table(runs: Sequence[Run]) -> list[str]:
+    reach, lowest = reach_cells(object_means(runs))
+    seeds = sorted(by_object(runs))
+    kind = "evaluation" if seeds[0] >= EVALUATION_SEEDS_FROM else "development"
+    if seeds[0] < EVALUATION_SEEDS_FROM <= seeds[-1]:
+        kind = "development and evaluation"
+    return [
+        f"Setting: {setting_text(runs[0])}; {kind} objects. Mean-class matching at or above "
+        f"{fmt(TARGET_PCT, 0)} %: {reach} objects; lowest {lowest}.",
+        "",
+        *table(OBJECT_HEADER, object_rows(runs) + [summary_row(runs)]),
+    ]
+
+
+COMPARISON_HEADER = [
+    "setting",
+    "mean-class % per object (seed order)",
+    "mean-class % (mean ± std over objects)",
+    "majority map %",
+    f"objects >= {fmt(TARGET_PCT, 0)} %",
+    "lowest",
+    *FIGURE_HEADER,
+]
+
+
+def comparison_table(settings: dict[str, list[Run]]) -> list[str]:
+    """One row per setting over the object seeds every setting ran."""
+    common = set.intersection(*(set(by_object(rs)) for rs in settings.values()))
+    rows = []
+    for label, runs in settings.items():
+        kept = [r for r in runs if object_seed(r) in common]
+        per_object = object_means(kept)
+        summary = summary_row(kept)
+        rows.append(
+            [
+                label,
+                ", ".join(fmt(per_object[s]) for s in sorted(per_object)),
+                *summary[4:6],
+                *reach_cells(per_object),
+                *summary[6:],
+            ]
+        )
+    seeds = ", ".join(str(s) for s in sorted(common))
+    return [
+        f"Pooled on object seeds {seeds} (every setting ran them).",
+        "",
+        *table(COMPARISON_HEADER, rows),
+    ]
+
+
+def source_tables(source: Source, runs: Sequence[Run]) -> list[str]:
+    settings: dict[str, list[Run]] = {}
+    for run in runs:
+        settings.setdefault(setting_text(run), []).append(run)
+    lines = [f"### `{source.label}`", ""]
+    if len(settings) > 1:
+        lines += comparison_table(settings) + [""]
+    for members in settings.values():
+        lines += setting_table(members) + [""]
+    return lines
+
+
+INTRO = [
+    "Runs on objects generated by `object=random object.seed=K` (shape family, size and",
+    "material layout drawn from the seed; see [objects](objects.md)): objects no setting was",
+    f"tuned on. Seeds from {EVALUATION_SEEDS_FROM} are the evaluation set, run to report and",
+    "never to choose settings; seeds below are for development. Per object: mean-class",
+    "matching beside the majority map, the classifier's accuracy on judged touches and its",
+    "coverage (share of touches given a label), and `auroc`, how well the map's entropy marks",
+    "where it is wrong ([uncertainty](#uncertainty-of-the-material-map)).",
+]
+
+
+def generated_section(sources: Sequence[Source]) -> list[str]:
+    lines = []
+    for source in sources:
+        runs = [r for r in source.runs if is_generated(r)]
+        if runs:
+            lines += source_tables(source, runs)
+    if not lines:
+        return []
+    return ["", "## Generated objects", "", *INTRO, "", *lines]

@@ -1,0 +1,65 @@
+"""The results page's section for runs on generated objects (object=random)."""
+
+from __future__ import annotations
+
+from pathlib import Path
+
+from tests.eval.test_results_page import cells, generate, run_metrics, section
+from tests.viz.test_sweep_plots import write_job
+
+
+def generated_metrics(seed: int, mean_class: float, auroc: float, family: str = "boxy") -> dict:
+    made = {"seed": seed, "family": family, "size_m": 0.09, "materials": ["metal", "wood"],
+            "regions": ["band"]}  # fmt: skip
+    return run_metrics(
+        mean_class, 90.0, 50.0, 60.0, "wood",
+        accuracy=0.95, coverage=0.6, oracles=["object_pose"],
+        uncertainty={"auroc": auroc}, config={"object": f"random_{seed}", "object_generation": made},
+    )  # fmt: skip
+
+
+def write_generated(sweep: Path, values: dict[int, float], extra: list[str], start: int = 0) -> int:
+    k = start
+    for seed, value in values.items():
+        overrides = ["object=random", f"object.seed={seed}", "seed=0", *extra]
+        write_job(sweep, str(k), overrides, generated_metrics(seed, value, 0.8))
+        k += 1
+    return k
+
+
+def test_generated_objects_get_a_row_each_a_mean_and_the_share_at_the_target(
+    tmp_path: Path,
+) -> None:
+    sweep = tmp_path / "multirun" / "unseen"
+    write_generated(sweep, {1000: 90.0, 1001: 70.0, 1002: 86.0}, [])
+    page = generate(tmp_path, sweep)
+    part = section(page, "Generated objects")
+    assert "evaluation objects. Mean-class matching at or above 80 %: 2 of 3 objects" in part
+    assert "lowest 70.0 (seed 1001)" in part
+    row = cells(part, "1001")
+    assert row[1:] == ["boxy, 9 cm", "2: band", "1", "70.0", "50.0 (wood)", "95.0", "60.0", "0.80"]
+    assert cells(part, "**mean**")[4] == "**82.0 ± 10.6**"
+    # Their own section only: not a settings table, not the uncertainty table.
+    assert "object.seed" not in section(page, "Other settings")
+
+
+def test_settings_on_the_same_objects_are_compared_on_the_objects_both_ran(
+    tmp_path: Path,
+) -> None:
+    sweep = tmp_path / "multirun" / "dev"
+    k = write_generated(sweep, {1: 80.0, 2: 60.0, 3: 99.0}, [])
+    write_generated(sweep, {1: 90.0, 2: 70.0}, ["mapping.mapper.label_vote_radius=0.01"], k)
+    part = section(generate(tmp_path, sweep), "Generated objects")
+    assert "Pooled on object seeds 1, 2 (every setting ran them)." in part
+    assert cells(part, "today's defaults (oracles: pose)")[1:6] == [
+        "80.0, 60.0", "**70.0 ± 14.1**", "50.0", "1 of 2", "60.0 (seed 2)",
+    ]  # fmt: skip
+    other = "`mapping.mapper.label_vote_radius=0.01` (oracles: pose)"
+    assert cells(part, other)[1:6] == [
+        "90.0, 70.0",
+        "**80.0 ± 14.1**",
+        "50.0",
+        "1 of 2",
+        "70.0 (seed 2)",
+    ]
+    assert "development objects" in part
