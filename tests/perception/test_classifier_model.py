@@ -11,7 +11,7 @@ from efficientnet_pytorch import EfficientNet
 
 from neuralfeels_sem.core.errors import DataError
 from neuralfeels_sem.perception.classifier.checkpoint import load_checkpoint, save_checkpoint
-from neuralfeels_sem.perception.classifier.model import HEAD_KEYS, build_model
+from neuralfeels_sem.perception.classifier.model import HEAD_KEYS, build_model, fold_batch_norms
 from neuralfeels_sem.perception.classifier.transforms import IMAGENET_MEAN, IMAGENET_STD
 
 
@@ -127,3 +127,24 @@ def test_not_a_checkpoint_is_a_data_error(tmp_path: Path) -> None:
     (tmp_path / "garbage.pt").write_bytes(b"not a zip")
     with pytest.raises(DataError, match="not readable"):
         load_checkpoint(tmp_path / "garbage.pt")
+
+
+def test_folding_the_batch_norms_keeps_the_predictions() -> None:
+    torch.manual_seed(0)
+    model = build_model(4)
+    with torch.no_grad():  # running statistics and affine maps away from the identity
+        for bn in (m for m in model.modules() if isinstance(m, torch.nn.BatchNorm2d)):
+            bn.running_mean.uniform_(-0.5, 0.5)
+            bn.running_var.uniform_(0.5, 2.0)
+            bn.weight.uniform_(0.5, 1.5)
+            bn.bias.uniform_(-0.2, 0.2)
+    model.eval()
+    x = torch.rand(3, 3, 64, 64).contiguous(memory_format=torch.channels_last)
+    with torch.no_grad():
+        before = model(x)
+        folded = fold_batch_norms(model)
+        after = folded(x)
+    assert not any(isinstance(m, torch.nn.BatchNorm2d) for m in folded.modules())
+    torch.testing.assert_close(after, before, rtol=1e-4, atol=1e-4)
+    with pytest.raises(ValueError, match="eval mode"):
+        fold_batch_norms(build_model(4).train())

@@ -22,7 +22,7 @@ import torch
 from neuralfeels_sem.core.errors import ConfigError, DataError
 from neuralfeels_sem.core.frame import TactileReading
 from neuralfeels_sem.perception.classifier.checkpoint import ClassifierCheckpoint, load_checkpoint
-from neuralfeels_sem.perception.classifier.model import build_model
+from neuralfeels_sem.perception.classifier.model import build_model, fold_batch_norms
 from neuralfeels_sem.perception.classifier.patches import crop_around, patch_centres, pixel_labels
 from neuralfeels_sem.perception.classifier.predict import predict_probs
 from neuralfeels_sem.perception.classifier.transforms import preprocess, resize_batch
@@ -138,7 +138,7 @@ class MaterialClassifier:
                 "set materials to match or train a classifier for these classes"
             )
         self._device = resolve_device(self.device_name)
-        self._model = ckpt.build(self._device)
+        self._model = fold_batch_norms(ckpt.build(self._device))  # inference only here
         self._ckpt = ckpt
         if self.background_dir is not None:
             self._load_backgrounds()
