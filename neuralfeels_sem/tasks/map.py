@@ -55,6 +55,7 @@ log = logging.getLogger(__name__)
 
 
 def run(cfg: DictConfig) -> dict:
+    code_version()  # the code this process started with, before a long run (cached)
     class_names = list(cfg.materials)
     obj = instantiate(cfg.object)
     sensor = build_sensor(cfg.sensor, obj, class_names)

@@ -1,12 +1,15 @@
 """The code a run ran: the git commit of the checkout and whether it had local changes.
 
 Recorded in metrics.json (`code`) so the results page can say which commit its figures
-come from. A copy outside git (an installed wheel, a tarball) records nulls.
+come from. A copy outside git (an installed wheel, a tarball) records nulls. Read once per
+process: a multirun imports the package once, so a commit made while it runs must not
+relabel its later jobs, which still run the code it started with.
 """
 
 from __future__ import annotations
 
 import subprocess
+from functools import cache
 from pathlib import Path
 
 PACKAGE_DIR = Path(__file__).resolve().parents[1]
@@ -27,8 +30,10 @@ def _git(*args: str) -> str | None:
     return result.stdout.strip() if result.returncode == 0 else None
 
 
+@cache
 def code_version() -> dict:
-    """{"commit": 40-hex or None, "dirty": tracked files changed since it (None if unknown)}."""
+    """{"commit": 40-hex or None, "dirty": tracked files changed since it (None if unknown)},
+    as of this process's first call (tasks call it when they start)."""
     commit = _git("rev-parse", "HEAD")
     if commit is None:
         return {"commit": None, "dirty": None}
