@@ -197,9 +197,7 @@ def _supported_distances(
     counts = np.zeros(len(bins) - 1, dtype=np.int64)
     for m in np.unique(truth[chosen]):
         mine = chosen & (truth == m)
-        ok = [
-            p[touches.labels_of(t) == m] for t, p in enumerate(touches.points) if touches.used[t]
-        ]
+        ok = [p[touches.labels_of(t) == m] for t, p in enumerate(touches.points) if touches.used[t]]
         distance = cKDTree(np.concatenate(ok)).query(points[mine])[0]
         counts += np.histogram(distance, bins=bins)[0]
     names = [f"<{b * 100:g}cm" for b in DISTANCE_BINS_M] + [f">={DISTANCE_BINS_M[-1] * 100:g}cm"]
