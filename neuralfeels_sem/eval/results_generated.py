@@ -25,6 +25,8 @@ from neuralfeels_sem.eval.results_tables import (
 TARGET_PCT = 80.0  # the per-object floor the unseen-objects benchmark asks for
 EVALUATION_SEEDS_FROM = 1000  # object seeds from here on are the evaluation set
 GENERATION = "config.object_generation"  # what make_random_object built (metrics.json)
+MEAN_CLASS = "matching_mean_class_pct"
+FLOOR = "baseline_majority.matching_mean_class_pct"
 FIGURES = (  # (metrics key, scale, digits) of the per-object columns after the majority map
     ("classifier_accuracy.overall", 100.0, 1),
     ("classifier_accuracy.coverage", 100.0, 1),
@@ -56,11 +58,13 @@ def by_object(runs: Sequence[Run]) -> dict[int, list[Run]]:
     return groups
 
 
-def object_means(runs: Sequence[Run]) -> dict[int, float]:
-    """{object seed: mean-class % over its runs} (objects without the figure left out)."""
+def object_means(
+    runs: Sequence[Run], key: str = MEAN_CLASS, scale: float = 1.0
+) -> dict[int, float]:
+    """{object seed: mean of `key` over its runs} (objects without the figure left out)."""
     out = {}
     for seed, members in by_object(runs).items():
-        values = values_of(members, "matching_mean_class_pct")
+        values = values_of(members, key, scale)
         if values:
             out[seed] = mean(values)
     return out
@@ -92,7 +96,7 @@ def object_rows(runs: Sequence[Run]) -> list[list[str]]:
                 str(seed),
                 *describe(members[0]),
                 str(len(members)),
-                fmt(mean(values_of(members, "matching_mean_class_pct"))),
+                fmt(mean(values_of(members, MEAN_CLASS))),
                 floor,
                 *(fmt(mean(values_of(members, k, s)), d) for k, s, d in FIGURES),
             ]
@@ -100,23 +104,23 @@ def object_rows(runs: Sequence[Run]) -> list[list[str]]:
     return rows
 
 
-def summary_row(runs: Sequence[Run]) -> list[str]:
-    """Mean ± std over objects (each object's runs averaged first)."""
-    groups = by_object(runs).values()
+def over_objects(runs: Sequence[Run]) -> list[str]:
+    """[mean-class, majority map, *FIGURES] as mean ± std over objects (each object's runs
+    averaged first; the majority map as a plain mean)."""
 
-    def over_objects(key: str, scale: float = 1.0) -> list[float]:
-        return [m for g in groups if (m := mean(values_of(g, key, scale))) is not None]
+    def values(key: str, scale: float = 1.0) -> list[float]:
+        return list(object_means(runs, key, scale).values())
 
-    floors = over_objects("baseline_majority.matching_mean_class_pct")
     return [
-        "**mean**",
-        "",
-        "",
-        str(len(runs)),
-        f"**{mean_std(over_objects('matching_mean_class_pct'))}**",
-        fmt(mean(floors)),
-        *(mean_std(over_objects(k, s), d) for k, s, d in FIGURES),
+        f"**{mean_std(values(MEAN_CLASS))}**",
+        fmt(mean(values(FLOOR))),
+        *(mean_std(values(k, s), d) for k, s, d in FIGURES),
     ]
+
+
+def summary_row(runs: Sequence[Run]) -> list[str]:
+    mean_class, floor, *figures = over_objects(runs)
+    return ["**mean**", "", "", str(len(runs)), mean_class, floor, *figures]
 
 
 OBJECT_HEADER = [
@@ -162,14 +166,15 @@ def comparison_table(settings: dict[str, list[Run]]) -> list[str]:
     for label, runs in settings.items():
         kept = [r for r in runs if object_seed(r) in common]
         per_object = object_means(kept)
-        summary = summary_row(kept)
+        mean_class, floor, *figures = over_objects(kept)
         rows.append(
             [
                 label,
                 ", ".join(fmt(per_object[s]) for s in sorted(per_object)),
-                *summary[4:6],
+                mean_class,
+                floor,
                 *reach_cells(per_object),
-                *summary[6:],
+                *figures,
             ]
         )
     seeds = ", ".join(str(s) for s in sorted(common))

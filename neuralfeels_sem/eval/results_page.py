@@ -235,9 +235,8 @@ def own_section_runs(source: Source) -> list[Run]:
     tables."""
     tracked, partners = pose_runs(source)
     resumed = [r for pair in resume_pairs(source) for r in pair]
-    own = tracked + partners + resumed + [r for r in source.runs if is_policy_run(r)]
-    taken = {id(r) for r in own}
-    return own + [r for r in source.runs if is_generated(r) and id(r) not in taken]
+    own = [r for r in source.runs if is_policy_run(r) or is_generated(r)]
+    return tracked + partners + resumed + own
 
 
 def table_runs(sources: Sequence[Source]) -> list[Run]:

@@ -1,8 +1,9 @@
 """The field's two heads: SDF from hash-grid features, material logits from SH + x + z(x).
 
 The material branch adds a hash grid of its own (`model.material.grid_levels`, 4 by
-default; 0 is the paper's branch): local features that only labelled touches train, so a narrow band or a small patch can
-take its own label where SH(direction), x and z(x) would blend it with its neighbours.
+default; 0 is the paper's branch): local features that only labelled touches train, so a
+narrow band or a small patch can take its own label where SH(direction), x and z(x)
+would blend it with its neighbours.
 Where no touch reached, the grid's features stay near their (tiny) initial values and the
 prediction falls back on SH, x and z(x).
 """

@@ -6,6 +6,8 @@ OpenGL happens in `opengl_camera_pose`.
 
 from __future__ import annotations
 
+from typing import NamedTuple
+
 import numpy as np
 import pyrender
 import pyrender.renderer as _pyrender_renderer
@@ -108,8 +110,18 @@ def _handle(egl_object) -> int | None:  # noqa: ANN001 - a PyOpenGL EGL handle
     return ctypes.cast(egl_object, ctypes.c_void_p).value
 
 
-def _current_egl() -> tuple:
-    """(display, draw surface, read surface, context address, context) current here."""
+class _EglCurrent(NamedTuple):
+    """What is current on this thread: eglMakeCurrent's arguments and the context's address."""
+
+    display: object
+    draw: object
+    read: object
+    context_id: int | None
+    context: object
+
+
+def _current_egl() -> _EglCurrent:
+    """The EGL display, surfaces and context current on this thread."""
     from OpenGL.EGL import (
         EGL_DRAW,
         EGL_READ,
@@ -120,7 +132,7 @@ def _current_egl() -> tuple:
 
     context = eglGetCurrentContext()
     surfaces = (eglGetCurrentSurface(EGL_DRAW), eglGetCurrentSurface(EGL_READ))
-    return (eglGetCurrentDisplay(), *surfaces, _handle(context), context)
+    return _EglCurrent(eglGetCurrentDisplay(), *surfaces, _handle(context), context)
 
 
 class _OffscreenKeepingDisplay(pyrender.OffscreenRenderer):
@@ -153,8 +165,8 @@ class _OffscreenKeepingDisplay(pyrender.OffscreenRenderer):
             self._renderer.delete()
             eglMakeCurrent(platform._egl_display, EGL_NO_SURFACE, EGL_NO_SURFACE, EGL_NO_CONTEXT)
             eglDestroyContext(platform._egl_display, platform._egl_context)
-            if previous[3] is not None and previous[3] != _handle(platform._egl_context):
-                eglMakeCurrent(*previous[:3], previous[4])
+            if previous.context_id not in (None, _handle(platform._egl_context)):
+                eglMakeCurrent(previous.display, previous.draw, previous.read, previous.context)
             platform._egl_context = None
         platform._egl_display = None  # the platform's own __del__ would eglTerminate it
         self._renderer = None
