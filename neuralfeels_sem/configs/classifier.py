@@ -37,6 +37,10 @@ class EfficientNetClassifierConfig:
     # (half a crop) resolves a border under the imprint to about 4 mm.
     patch_spacing_px: int = 56
     max_patches: int = 8
+    # Patches read first, after the centre: the imprint's far ends (farthest-point order).
+    # A touch whose centre and these name one material confidently is taken as one
+    # material throughout and its other patches are not read. 0: read every patch.
+    patch_probe: int = 0
 
     def __post_init__(self) -> None:
         if not 0 <= self.patch_spacing_px <= 240:
@@ -45,6 +49,10 @@ class EfficientNetClassifierConfig:
             )
         if not 1 <= self.max_patches <= 64:
             raise ValueError(f"classifier.max_patches={self.max_patches} must be in 1..64")
+        if not 0 <= self.patch_probe <= 64:
+            raise ValueError(
+                f"classifier.patch_probe={self.patch_probe} must be in 0..64 (0: read every patch)"
+            )
         if not 0.0 <= self.min_confidence <= 1.0:
             raise ValueError(f"classifier.min_confidence={self.min_confidence} must be in [0, 1]")
         if not 0.0 < self.max_edge_share <= 1.0:

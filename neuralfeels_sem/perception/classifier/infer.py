@@ -54,6 +54,8 @@ class MaterialClassifier:
         background (a real DIGIT is usually started free of contact).
     weights, input_size, crop_px: how `task=train_classifier` builds a new model
         (`new_model()`) and its inputs; a loaded checkpoint carries its own input size and crop.
+    patch_spacing_px, max_patches, patch_probe: patch readings across the imprint
+        (perception/classifier/patches.py; `_read_patches`); spacing 0 = off.
     """
 
     def __init__(
@@ -74,6 +76,7 @@ class MaterialClassifier:
         crop_px: int | None = None,
         patch_spacing_px: int = 0,
         max_patches: int = 8,
+        patch_probe: int = 0,
     ) -> None:
         if not 0.0 <= min_confidence <= 1.0:
             raise ValueError(f"min_confidence={min_confidence} must be in [0, 1]")
@@ -99,6 +102,9 @@ class MaterialClassifier:
             )
         self.patch_spacing_px = int(patch_spacing_px)
         self.max_patches = int(max_patches)
+        if patch_probe < 0:
+            raise ValueError(f"patch_probe={patch_probe} must be >= 0 (0: read every patch)")
+        self.patch_probe = int(patch_probe)
         self._backgrounds: dict[str, np.ndarray] = {}
         self._model: torch.nn.Module | None = None
         self._ckpt: ClassifierCheckpoint | None = None
@@ -261,22 +267,53 @@ class MaterialClassifier:
     def _read_patches(
         self, readings: Sequence[TactileReading], masks: list[np.ndarray], labels: list[TouchLabel]
     ) -> None:
-        """Fill `pixel_labels` of each touch from crops across its imprint (one batch).
+        """Fill `pixel_labels` of each touch from crops across its imprint.
 
         The first centre is the contact's centroid, whose crop the touch's own label read.
+        With `patch_probe` > 0 the next `patch_probe` centres (farthest-point order: the
+        imprint's far ends) are read first, in one batch for all touches; a touch whose
+        centre and probes all name one material confidently is taken as one material
+        throughout, and only the other touches have their remaining patches read (a second
+        batch).
         """
         crop_px = self.loaded.meta.get("crop_px")
         if not crop_px or not readings:
             return  # a whole-frame model has no patches to read
         centres = [patch_centres(m, self.patch_spacing_px, self.max_patches) for m in masks]
-        crops = [
-            crop_around(r.image, c, crop_px) for r, cs in zip(readings, centres) for c in cs[1:]
-        ]
-        probs = iter(self.predict_images(np.stack(crops)) if crops else [])
-        for reading, cs, label in zip(readings, centres, labels):
-            p = np.stack([label.probs, *(next(probs) for _ in cs[1:])])
+        probe = self.patch_probe if self.patch_probe > 0 else self.max_patches
+        first = self._predict_centres(readings, centres, 1, 1 + probe, crop_px)
+        probs = [np.concatenate([lab.probs[None], p]) for lab, p in zip(labels, first)]
+        rest = [i for i, p in enumerate(probs) if len(p) < len(centres[i]) and not self._uniform(p)]
+        later = self._predict_centres([readings[i] for i in rest], [centres[i] for i in rest],
+                                      1 + probe, None, crop_px)  # fmt: skip
+        for i, p in zip(rest, later):
+            probs[i] = np.concatenate([probs[i], p])
+        for reading, cs, label, p in zip(readings, centres, labels, probs):
             top, conf = p.argmax(axis=1), p.max(axis=1)
             top = np.where(conf >= self.min_confidence, top, NO_LABEL)
+            if len(p) < len(cs):  # one material throughout: the unread patches take it
+                top = np.full(len(cs), top[0])
+                conf = np.full(len(cs), conf.min(), dtype=conf.dtype)
             label.pixel_labels, label.pixel_confidence = pixel_labels(
                 reading.image.shape[:2], cs, top, conf, crop_px / 2.0
             )
+
+    def _uniform(self, probs: np.ndarray) -> bool:
+        """All readings (K, C) confident and naming one material."""
+        top = probs.argmax(axis=1)
+        return bool((probs.max(axis=1) >= self.min_confidence).all() and (top == top[0]).all())
+
+    def _predict_centres(
+        self,
+        readings: Sequence[TactileReading],
+        centres: list[np.ndarray],
+        start: int,
+        stop: int | None,
+        crop_px: int,
+    ) -> list[np.ndarray]:
+        """Per reading, the (k, C) probabilities of its crops at centres[start:stop] (one batch)."""
+        chosen = [cs[start:stop] for cs in centres]
+        crops = [crop_around(r.image, c, crop_px) for r, cs in zip(readings, chosen) for c in cs]
+        flat = self.predict_images(np.stack(crops)) if crops else np.zeros((0, len(self.class_names)))
+        bounds = np.cumsum([0] + [len(cs) for cs in chosen])
+        return [flat[a:b] for a, b in zip(bounds[:-1], bounds[1:])]
