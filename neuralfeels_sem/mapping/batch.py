@@ -3,7 +3,8 @@
 Per step: `camera_rays` rays from the keyframe window and `tactile_rays` from all touches,
 each sampled at the surface, in the truncation band and in free space (sampling.py);
 `space_prior_points` points of the space-carving prior once its hull exists; and
-`material_points` labelled touch points. The field sees them all in one pass, in this
+`material_points` labelled touch points (uniformly, or `balanced`: an equal share per
+material). The field sees them all in one pass, in this
 order: geometry samples (camera then tactile rays), space-prior points, material points.
 The draws come from the mapper's generator in a fixed order, so a run is repeatable.
 """
@@ -11,15 +12,24 @@ The draws come from the mapper's generator in a fixed order, so a run is repeata
 from __future__ import annotations
 
 from dataclasses import dataclass
-from typing import TYPE_CHECKING
+from typing import TYPE_CHECKING, Literal
 
 import torch
 
 from neuralfeels_sem.mapping.memory import MapMemory
-from neuralfeels_sem.mapping.sampling import RaySamples, random_indices, sample_along_rays
+from neuralfeels_sem.mapping.sampling import (
+    RaySamples,
+    balanced_indices,
+    label_groups,
+    random_indices,
+    sample_along_rays,
+)
 
 if TYPE_CHECKING:
     from neuralfeels_sem.mapping.mapper import MapperConfig
+
+MaterialSampling = Literal["uniform", "balanced"]
+MATERIAL_SAMPLINGS = ("uniform", "balanced")
 
 
 @dataclass
@@ -63,6 +73,8 @@ class BatchSampler:
         self.band_samples = config.band_samples
         self.free_samples = config.free_samples
         self.material_points = config.material_points
+        self.material_sampling = config.material_sampling
+        self._grouped: tuple | None = None  # (labels, label_groups(labels)) of the last step
         self.space_prior_points = config.space_prior_points
         self.truncation = float(config.truncation)
         self.camera_free_range = float(config.camera_free_range)
@@ -76,9 +88,17 @@ class BatchSampler:
         rays = [(camera.samples, self.camera_weight)] if camera else []
         rays += [(tactile, self.tactile_weight)] if tactile else []
         touch = self.memory.touches.tensors()
-        pick = random_indices(
-            len(touch["labelled_points"]), self.material_points, self.generator, self.device
-        )
+        if self.material_sampling == "balanced":
+            pick = balanced_indices(
+                self._groups(touch["labelled_labels"]),
+                self.material_points,
+                self.generator,
+                self.device,
+            )
+        else:
+            pick = random_indices(
+                len(touch["labelled_points"]), self.material_points, self.generator, self.device
+            )
         x_mat = touch["labelled_points"][pick]
         # Space-prior points (cube samples with a target sign), none until the hull exists.
         x_space, sign_space = x_mat[:0], x_mat[:0, 0]
@@ -95,6 +115,12 @@ class BatchSampler:
             material_labels=touch["labelled_labels"][pick],
             material_weights=touch["labelled_weights"][pick],
         )
+
+    def _groups(self, labels: torch.Tensor) -> tuple[torch.Tensor, torch.Tensor, torch.Tensor]:
+        """label_groups of the touches' labels, kept while the touch memory's tensors are."""
+        if self._grouped is None or self._grouped[0] is not labels:
+            self._grouped = (labels, label_groups(labels))
+        return self._grouped[1]
 
     def _camera_rays(self) -> CameraRays | None:
         keyframes = self.memory.keyframes

@@ -25,7 +25,7 @@ from tqdm import tqdm
 from neuralfeels_sem.core.errors import ConfigError, NoDataError, NumericalError
 from neuralfeels_sem.core.frame import Frame
 from neuralfeels_sem.core.materials import DEFAULT_MATERIALS
-from neuralfeels_sem.mapping.batch import BatchSampler, per_keyframe_losses
+from neuralfeels_sem.mapping.batch import MATERIAL_SAMPLINGS, BatchSampler, per_keyframe_losses
 from neuralfeels_sem.mapping.bookkeeping import TrainingLog
 from neuralfeels_sem.mapping.frame_points import CAMERA_MASKS, PointExtractor
 from neuralfeels_sem.mapping.memory import MapMemory
@@ -49,7 +49,8 @@ class MapperConfig:
     steps_per_frame: int = 3
     # fixed: steps_per_frame on every frame; surprise: min_steps_per_frame up to
     # steps_per_frame by how much of the new frame the field does not explain yet
-    # (mapping/step_policy.py).
+    # (mapping/step_policy.py). surprise takes about half the steps but maps the generated
+    # development objects worse (docs/field_and_mapper.md#steps-per-frame).
     steps_policy: str = "fixed"
     min_steps_per_frame: int = 1
     warmup_steps: int = 50  # steps on the first frame with data
@@ -60,6 +61,11 @@ class MapperConfig:
     band_samples: int = 5  # per ray, inside the truncation band
     free_samples: int = 4  # per ray, in free space
     material_points: int = 256  # per step, from all labelled touches
+    # uniform: every labelled point alike; balanced: each material the touches name gets an
+    # equal share of the draws, so a small insert's few points train as often as the
+    # largest material's many (batch.py). balanced over-extends the rare materials on the
+    # generated development objects (docs/field_and_mapper.md#steps-per-frame).
+    material_sampling: str = "uniform"
     truncation: float = 0.005  # metres
     camera_free_range: float = 0.05  # metres in front of the surface
     tactile_free_range: float = 0.01
@@ -106,6 +112,11 @@ class MapperConfig:
             raise ValueError(
                 f"mapping.mapper.min_steps_per_frame={self.min_steps_per_frame} must be in "
                 f"[1, steps_per_frame={self.steps_per_frame}]"
+            )
+        if self.material_sampling not in MATERIAL_SAMPLINGS:
+            raise ValueError(
+                f"mapping.mapper.material_sampling={self.material_sampling!r}: use one of "
+                f"{', '.join(MATERIAL_SAMPLINGS)}"
             )
         if self.camera_mask not in CAMERA_MASKS:
             raise ValueError(

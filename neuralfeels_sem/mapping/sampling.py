@@ -85,6 +85,31 @@ def random_indices(
     return torch.randint(n_total, (n_draw,), generator=generator).to(device)
 
 
+def label_groups(labels: torch.Tensor) -> tuple[torch.Tensor, torch.Tensor, torch.Tensor]:
+    """(order, starts, counts) of labels (N,): the indices grouped by label, and where each
+    label present starts in `order` and how many points it has (CPU)."""
+    _, inverse, counts = torch.unique(labels.cpu(), return_inverse=True, return_counts=True)
+    order = torch.argsort(inverse, stable=True)
+    return order, torch.cumsum(counts, 0) - counts, counts
+
+
+def balanced_indices(
+    groups: tuple[torch.Tensor, torch.Tensor, torch.Tensor],
+    n_draw: int,
+    generator: torch.Generator,
+    device: torch.device,
+) -> torch.Tensor:
+    """n_draw indices with replacement, each label of `groups` (label_groups) equally likely,
+    then uniform among its points; empty when there are no points."""
+    order, starts, counts = groups
+    if len(order) == 0 or n_draw == 0:
+        return torch.zeros(0, dtype=torch.long, device=device)
+    which = torch.randint(len(counts), (n_draw,), generator=generator)
+    within = (torch.rand(n_draw, generator=generator) * counts[which]).long()
+    within = torch.minimum(within, counts[which] - 1)  # float rounding must not reach the next
+    return order[starts[which] + within].to(device)
+
+
 def subsample(
     n_total: int, n_keep: int, generator: torch.Generator, replace_if_short: bool
 ) -> torch.Tensor:

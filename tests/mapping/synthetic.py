@@ -17,8 +17,11 @@ from neuralfeels_sem.mapping.sphere_scene import (  # noqa: F401  (re-exported f
 )
 
 
-def small_field(concat: bool = True, log2_table_size: int = 15) -> torch.nn.Module:
-    """The real SemanticField, with a small hash table (sparse gradients: FieldAdam) for fast CPU tests."""
+def small_field(
+    concat: bool = True, log2_table_size: int = 15, material_grid_levels: int | None = None
+) -> torch.nn.Module:
+    """The real SemanticField, with a small hash table (sparse gradients: FieldAdam) for fast
+    CPU tests; the material grid as the command line's unless `material_grid_levels`."""
     from neuralfeels_sem.fields.hash_grid import HashGridConfig
     from neuralfeels_sem.fields.heads import MaterialHeadConfig
     from neuralfeels_sem.fields.semantic_field import SemanticField, SemanticFieldConfig
@@ -26,7 +29,9 @@ def small_field(concat: bool = True, log2_table_size: int = 15) -> torch.nn.Modu
     config = SemanticFieldConfig(
         num_classes=2,
         encoding=HashGridConfig(log2_table_size=log2_table_size, sparse_grad=True),
-        material=MaterialHeadConfig(concat_sdf_features=concat),
+        material=MaterialHeadConfig(concat_sdf_features=concat)
+        if material_grid_levels is None
+        else MaterialHeadConfig(concat_sdf_features=concat, grid_levels=material_grid_levels),
     )
     return SemanticField(config, bound=0.08)
 

@@ -86,9 +86,10 @@ def test_counts_losses_and_warmup() -> None:
     frames = sphere_frames(3, touches_per_frame=2)
     # Exact counts: without the space prior (its share varies per step) and the label vote
     # (it would leave out these few far-apart touches); both are counted in the next test.
+    # Fixed steps per frame (surprise, the default, is counted in test_step_policy.py).
     mapper = make_mapper(
         camera_points_per_frame=500, tactile_points_per_touch=64, steps_per_frame=2,
-        warmup_steps=5, space_prior_points=0, label_vote_radius=0.0,
+        warmup_steps=5, space_prior_points=0, label_vote_radius=0.0, steps_policy="fixed",
     )  # fmt: skip
     labels = dict(frames[0][1])
     labels["middle"] = TouchLabel(
@@ -210,16 +211,34 @@ def test_field_fits_sphere_sdf_below_2mm() -> None:
     assert max(band) < 2e-3, band
 
 
+# Measured agreement: 0.985 without the material grid (the paper's branch), 0.964 with the
+# default grid, which extrapolates less far from the sparse touches into the untouched band.
 @pytest.mark.slow
-@pytest.mark.parametrize("concat", [True, False])
-def test_material_split_from_sparse_touches(concat: bool) -> None:
-    mapper = make_mapper(concat=concat, steps_per_frame=15, warmup_steps=30)
+@pytest.mark.parametrize(
+    ("concat", "grid_levels", "sampling", "least"),
+    [
+        (True, 0, "uniform", 0.98),
+        (False, 0, "uniform", 0.98),
+        (False, None, "uniform", 0.95),
+        (False, None, "balanced", 0.95),
+    ],
+)
+def test_material_split_from_sparse_touches(
+    concat: bool, grid_levels: int | None, sampling: str, least: float
+) -> None:
+    torch.manual_seed(0)
+    field = small_field(concat=concat, log2_table_size=14, material_grid_levels=grid_levels)
+    mapper = small_mapper(
+        field, steps_per_frame=15, warmup_steps=30, camera_rays=128, tactile_rays=64,
+        band_samples=3, free_samples=2, material_points=256, seed=0, steps_policy="fixed",
+        material_sampling=sampling,
+    )  # fmt: skip
     for frame, labels in sphere_frames(16, touches_per_frame=4, camera=False):
         mapper.add_frame(frame, labels)
     surface = sphere_surface(4000)
     predicted = mapper.field.predict_material(torch.tensor(surface, dtype=torch.float32)).numpy()
     agreement = (predicted == true_label(surface)).mean()
-    assert agreement >= 0.98, agreement
+    assert agreement >= least, agreement
 
 
 def test_eikonal_term_trains_through_the_sparse_hash_grid() -> None:
@@ -235,7 +254,16 @@ def test_eikonal_term_trains_through_the_sparse_hash_grid() -> None:
     assert mapper.trained_on["optimizer_steps"] == 2
 
 
-@pytest.mark.parametrize("bad", [{"num_classes": 1}, {"truncation": 0.0}, {"steps_per_frame": -1}])
+@pytest.mark.parametrize(
+    "bad",
+    [
+        {"num_classes": 1},
+        {"truncation": 0.0},
+        {"steps_per_frame": -1},
+        {"steps_policy": "adaptive"},
+        {"material_sampling": "stratified"},
+    ],
+)
 def test_bad_settings_are_refused_by_the_config(bad: dict) -> None:
     with pytest.raises(ValueError, match=next(iter(bad))):
         MapperConfig(**bad)

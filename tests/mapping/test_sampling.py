@@ -5,7 +5,13 @@ from __future__ import annotations
 import pytest
 import torch
 
-from neuralfeels_sem.mapping.sampling import random_indices, sample_along_rays, subsample
+from neuralfeels_sem.mapping.sampling import (
+    balanced_indices,
+    label_groups,
+    random_indices,
+    sample_along_rays,
+    subsample,
+)
 
 
 def rays(r: int = 50) -> tuple[torch.Tensor, torch.Tensor, torch.Tensor]:
@@ -66,3 +72,18 @@ def test_subsample_and_random_indices() -> None:
     idx = random_indices(7, 1000, g, torch.device("cpu"))
     assert idx.min() >= 0 and idx.max() <= 6 and len(torch.unique(idx)) == 7
     assert len(random_indices(0, 10, g, torch.device("cpu"))) == 0
+
+
+def test_balanced_indices_give_each_material_an_equal_share() -> None:
+    # 1000 points of one material, 10 of an insert, 90 of a third; class 1 absent.
+    labels = torch.tensor([0] * 1000 + [2] * 10 + [3] * 90)[torch.randperm(1100)]
+    g = torch.Generator().manual_seed(0)
+    groups = label_groups(labels)
+    idx = balanced_indices(groups, 30000, g, torch.device("cpu"))
+    share = torch.bincount(labels[idx], minlength=4).float() / len(idx)
+    assert share[1] == 0 and torch.allclose(share[[0, 2, 3]], torch.full((3,), 1 / 3), atol=0.02)
+    assert len(torch.unique(idx[labels[idx] == 2])) == 10  # every insert point is drawn
+    assert len(torch.unique(idx[labels[idx] == 0])) > 900  # uniform within a material
+    empty = label_groups(torch.zeros(0, dtype=torch.long))
+    assert len(balanced_indices(empty, 10, g, torch.device("cpu"))) == 0
+    assert len(balanced_indices(groups, 0, g, torch.device("cpu"))) == 0

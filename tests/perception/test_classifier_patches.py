@@ -109,3 +109,45 @@ def test_classify_reads_patches_of_a_touch_unless_it_is_cut_off_by_the_edge(
         MaterialClassifier(CLASSES, patch_spacing_px=-1)
     with pytest.raises(ValueError, match="patch_spacing_px"):
         EfficientNetClassifierConfig(patch_spacing_px=300)
+
+
+class _MarkedRed(MaterialClassifier):
+    """Reads wood (3) in crops that are mostly marked red, plastic (0) elsewhere, at 0.97;
+    counts the images it is given. A whole frame is judged by its central crop."""
+
+    read = 0
+
+    def predict_images(self, images, backgrounds=None) -> np.ndarray:
+        self.open()
+        images = np.asarray(images)
+        self.read += len(images)
+        h, w = images.shape[1:3]
+        centre = images[:, h // 2 - 56 : h // 2 + 56, w // 2 - 56 : w // 2 + 56, 0]
+        wood = (centre == 255).mean(axis=(1, 2)) > 0.5
+        probs = np.full((len(images), 4), 0.01, dtype=np.float32)
+        probs[np.arange(len(images)), np.where(wood, 3, 0)] = 0.97
+        return probs
+
+
+def test_probing_the_far_ends_first_skips_the_rest_only_of_a_touch_of_one_material(
+    crop_checkpoint: Path,
+) -> None:
+    rng = np.random.default_rng(3)
+    image = pressed(1, 0, rng)
+    marked = image.copy()
+    marked[260:, :, 0] = 255  # the imprint's far end on another material
+    kwargs = {"checkpoint": str(crop_checkpoint), "device": "cpu", "patch_spacing_px": 40}
+    for frame, whole in ((image, True), (marked, False)):
+        touch = TactileReading("index", frame, np.eye(4), DIGIT_INTRINSICS, background(1))
+        every, probed = _MarkedRed(CLASSES, **kwargs), _MarkedRed(CLASSES, patch_probe=2, **kwargs)
+        full, quick = every.classify([touch])[0], probed.classify([touch])[0]
+        patches = len(patch_centres(every.contact_mask(touch), 40, 8))
+        assert patches == 8 and every.read == patches
+        # One material at the centre and both far ends: the other five are not read, and
+        # every pixel gets what reading them would have given.
+        assert probed.read == (3 if whole else patches)
+        np.testing.assert_array_equal(quick.pixel_labels, full.pixel_labels)
+        np.testing.assert_array_equal(quick.pixel_confidence, full.pixel_confidence)
+        assert (3 in full.pixel_labels) != whole
+    with pytest.raises(ValueError, match="patch_probe"):
+        EfficientNetClassifierConfig(patch_probe=-1)
