@@ -5,6 +5,8 @@ regions): mean-class matching beside the majority map, the classifier's accuracy
 coverage, and the AUROC of the map's entropy against its errors; then the mean over the
 objects, how many reach TARGET_PCT and the lowest. A source that ran several settings on
 the same objects first gets a comparison, pooled on the objects every setting ran.
+Development objects (seeds below EVALUATION_SEEDS_FROM) are pooled over every source, so
+settings run in different sweeps are compared on the objects they all ran.
 """
 
 from __future__ import annotations
@@ -208,12 +210,33 @@ INTRO = [
 ]
 
 
+def development_tables(runs: Sequence[Run]) -> list[str]:
+    """Every source's development runs together: one comparison of the settings over the
+    objects they all ran, then the objects of today's defaults (when they ran)."""
+    settings: dict[str, list[Run]] = {}
+    for run in runs:
+        settings.setdefault(setting_text(run), []).append(run)
+    lines = ["### Development objects, every source", ""]
+    if len(settings) > 1:
+        lines += comparison_table(settings) + [""]
+    default = [members for label, members in settings.items() if label.startswith("today's")]
+    for members in default or list(settings.values())[:1]:
+        lines += setting_table(members) + [""]
+    return lines
+
+
 def generated_section(sources: Sequence[Source]) -> list[str]:
-    lines = []
+    """Evaluation objects per source (each sweep run once to report); development objects
+    of every source pooled, so settings from different sweeps compare on common objects."""
+    lines, development = [], []
     for source in sources:
         runs = [r for r in source.runs if is_generated(r)]
-        if runs:
-            lines += source_tables(source, runs)
+        development += [r for r in runs if object_seed(r) < EVALUATION_SEEDS_FROM]
+        evaluation = [r for r in runs if object_seed(r) >= EVALUATION_SEEDS_FROM]
+        if evaluation:
+            lines += source_tables(source, evaluation)
+    if development:
+        lines += development_tables(development)
     if not lines:
         return []
     return ["", "## Generated objects", "", *INTRO, "", *lines]

@@ -103,3 +103,12 @@ def test_a_retired_group_option_reads_as_the_option_that_composes_it_today() -> 
     assert current_overrides({"model": "semantic_sdf_no_concat"}) == {
         "model": "semantic_sdf_no_concat"
     }
+
+
+def test_a_setting_added_since_reads_as_the_value_runs_before_it_had() -> None:
+    recorded = {"classifier": {"max_patches": 8}, "mapping": {"pose": "gt"}}
+    today = {"classifier.max_patches": 8, "classifier.patch_probe": 2, "mapping.pose": "gt"}
+    assert drift(recorded, {}, today) == {"classifier.patch_probe": (0, 2)}
+    assert drift({"classifier": {"max_patches": 8, "patch_probe": 2}}, {}, today) == {}
+    # Without the key it came beside (another classifier, a partial record): skipped.
+    assert drift({"classifier": {"_target_": "x"}}, {}, today) == {}

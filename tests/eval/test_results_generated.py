@@ -63,3 +63,20 @@ def test_settings_on_the_same_objects_are_compared_on_the_objects_both_ran(
         "70.0 (seed 2)",
     ]
     assert "development objects" in part
+
+
+def test_development_objects_of_several_sweeps_are_compared_together(tmp_path: Path) -> None:
+    first, second = tmp_path / "multirun" / "dev_a", tmp_path / "multirun" / "dev_b"
+    write_generated(first, {1: 80.0, 2: 60.0}, [])
+    write_generated(second, {1: 90.0, 2: 70.0, 3: 75.0}, ["mapping.mapper.steps_policy=surprise"])
+    write_generated(second, {1000: 85.0}, ["mapping.mapper.steps_policy=surprise"], 3)
+    part = section(generate(tmp_path, first, second), "Generated objects")
+    assert part.count("### Development objects, every source") == 1
+    assert "Pooled on object seeds 1, 2 (every setting ran them)." in part
+    assert cells(part, "today's defaults (oracles: pose)")[1:3] == ["80.0, 60.0", "**70.0 ± 14.1**"]
+    surprise = "`mapping.mapper.steps_policy=surprise` (oracles: pose)"
+    assert cells(part, surprise)[1:3] == ["90.0, 70.0", "**80.0 ± 14.1**"]
+    # Objects listed for today's defaults only; the evaluation object keeps its sweep's table.
+    assert "Setting: today's defaults (oracles: pose); development objects." in part
+    assert f"Setting: {surprise}; development objects." not in part
+    assert "multirun/dev_b`" in part and "evaluation objects. Mean-class" in part
