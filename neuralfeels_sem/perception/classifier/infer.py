@@ -314,6 +314,8 @@ class MaterialClassifier:
         """Per reading, the (k, C) probabilities of its crops at centres[start:stop] (one batch)."""
         chosen = [cs[start:stop] for cs in centres]
         crops = [crop_around(r.image, c, crop_px) for r, cs in zip(readings, chosen) for c in cs]
-        flat = self.predict_images(np.stack(crops)) if crops else np.zeros((0, len(self.class_names)))
+        flat = (
+            self.predict_images(np.stack(crops)) if crops else np.zeros((0, len(self.class_names)))
+        )
         bounds = np.cumsum([0] + [len(cs) for cs in chosen])
         return [flat[a:b] for a, b in zip(bounds[:-1], bounds[1:])]
