@@ -77,7 +77,7 @@ def compared(key: str) -> bool:
 # Settings added since with a default that changes what a run does: {key: (a key every run
 # recorded when it was added, the value runs that recorded that key but not this one ran
 # with)}. classifier.patch_probe came with 0 (every patch read); the default became 2.
-BEFORE_THEY_EXISTED: dict[str, tuple[str, Any]] = {
+ADDED_SINCE: dict[str, tuple[str, Any]] = {
     "classifier.patch_probe": ("classifier.max_patches", 0),
 }
 
@@ -85,10 +85,10 @@ BEFORE_THEY_EXISTED: dict[str, tuple[str, Any]] = {
 def drift(recorded: dict, overrides: dict[str, str], today: dict[str, Any]) -> dict[str, tuple]:
     """{key: (the run's value, today's default)} for every compared leaf the run did not
     override whose recorded value differs from today's; keys only one side has are skipped
-    (a setting added or removed since), except those of BEFORE_THEY_EXISTED."""
+    (a setting added or removed since), except those of ADDED_SINCE."""
     out = {}
     flat = flatten(recorded)
-    for key, (sibling, value) in BEFORE_THEY_EXISTED.items():
+    for key, (sibling, value) in ADDED_SINCE.items():
         if sibling in flat:
             flat.setdefault(key, value)
     for key, value in flat.items():

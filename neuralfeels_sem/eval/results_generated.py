@@ -45,10 +45,15 @@ def object_seed(run: Run) -> int:
     return int(get(run.metrics, f"{GENERATION}.seed"))
 
 
+def setting_rest(run: Run) -> dict:
+    """The run's setting less the object's seed (empty: today's defaults)."""
+    return {k: v for k, v in run.setting.items() if k != "object.seed"}
+
+
 def setting_text(run: Run) -> str:
     """The run's setting less the object's seed ("today's defaults" when that is all) and
     the oracles it used."""
-    rest = {k: v for k, v in run.setting.items() if k != "object.seed"}
+    rest = setting_rest(run)
     setting = ", ".join(f"`{k}={v}`" for k, v in sorted(rest.items())) or "today's defaults"
     return f"{setting} (oracles: {oracles_cell(run)})"
 
@@ -219,7 +224,7 @@ def development_tables(runs: Sequence[Run]) -> list[str]:
     lines = ["### Development objects, every source", ""]
     if len(settings) > 1:
         lines += comparison_table(settings) + [""]
-    default = [members for label, members in settings.items() if label.startswith("today's")]
+    default = [members for members in settings.values() if not setting_rest(members[0])]
     for members in default or list(settings.values())[:1]:
         lines += setting_table(members) + [""]
     return lines

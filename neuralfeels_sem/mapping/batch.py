@@ -12,7 +12,7 @@ The draws come from the mapper's generator in a fixed order, so a run is repeata
 from __future__ import annotations
 
 from dataclasses import dataclass
-from typing import TYPE_CHECKING, Literal
+from typing import TYPE_CHECKING
 
 import torch
 
@@ -28,8 +28,7 @@ from neuralfeels_sem.mapping.sampling import (
 if TYPE_CHECKING:
     from neuralfeels_sem.mapping.mapper import MapperConfig
 
-MaterialSampling = Literal["uniform", "balanced"]
-MATERIAL_SAMPLINGS = ("uniform", "balanced")
+MATERIAL_SAMPLINGS = ("uniform", "balanced")  # mapping.mapper.material_sampling
 
 
 @dataclass

@@ -29,9 +29,12 @@ def small_field(
     config = SemanticFieldConfig(
         num_classes=2,
         encoding=HashGridConfig(log2_table_size=log2_table_size, sparse_grad=True),
-        material=MaterialHeadConfig(concat_sdf_features=concat)
-        if material_grid_levels is None
-        else MaterialHeadConfig(concat_sdf_features=concat, grid_levels=material_grid_levels),
+        material=MaterialHeadConfig(
+            concat_sdf_features=concat,
+            grid_levels=MaterialHeadConfig.grid_levels
+            if material_grid_levels is None
+            else material_grid_levels,
+        ),
     )
     return SemanticField(config, bound=0.08)
 

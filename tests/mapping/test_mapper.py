@@ -26,7 +26,9 @@ from tests.mapping.synthetic import (
 )
 
 
-def make_mapper(concat: bool = True, **kwargs) -> OnlineMapper:
+def make_mapper(
+    concat: bool = True, material_grid_levels: int | None = None, **kwargs
+) -> OnlineMapper:
     """The command line's mapper (MapperConfig defaults), smaller batches, `kwargs` changed."""
     torch.manual_seed(0)
     args = dict(
@@ -34,7 +36,8 @@ def make_mapper(concat: bool = True, **kwargs) -> OnlineMapper:
         band_samples=3, free_samples=2, material_points=256, seed=0,
     )  # fmt: skip
     args.update(kwargs)
-    return small_mapper(small_field(concat=concat, log2_table_size=14), **args)
+    field = small_field(concat, log2_table_size=14, material_grid_levels=material_grid_levels)
+    return small_mapper(field, **args)
 
 
 def test_frame_points_use_the_given_pose() -> None:
@@ -86,10 +89,9 @@ def test_counts_losses_and_warmup() -> None:
     frames = sphere_frames(3, touches_per_frame=2)
     # Exact counts: without the space prior (its share varies per step) and the label vote
     # (it would leave out these few far-apart touches); both are counted in the next test.
-    # Fixed steps per frame (surprise, the default, is counted in test_step_policy.py).
     mapper = make_mapper(
         camera_points_per_frame=500, tactile_points_per_touch=64, steps_per_frame=2,
-        warmup_steps=5, space_prior_points=0, label_vote_radius=0.0, steps_policy="fixed",
+        warmup_steps=5, space_prior_points=0, label_vote_radius=0.0,
     )  # fmt: skip
     labels = dict(frames[0][1])
     labels["middle"] = TouchLabel(
@@ -226,13 +228,9 @@ def test_field_fits_sphere_sdf_below_2mm() -> None:
 def test_material_split_from_sparse_touches(
     concat: bool, grid_levels: int | None, sampling: str, least: float
 ) -> None:
-    torch.manual_seed(0)
-    field = small_field(concat=concat, log2_table_size=14, material_grid_levels=grid_levels)
-    mapper = small_mapper(
-        field, steps_per_frame=15, warmup_steps=30, camera_rays=128, tactile_rays=64,
-        band_samples=3, free_samples=2, material_points=256, seed=0, steps_policy="fixed",
-        material_sampling=sampling,
-    )  # fmt: skip
+    mapper = make_mapper(
+        concat, grid_levels, steps_per_frame=15, warmup_steps=30, material_sampling=sampling
+    )
     for frame, labels in sphere_frames(16, touches_per_frame=4, camera=False):
         mapper.add_frame(frame, labels)
     surface = sphere_surface(4000)
