@@ -1,7 +1,7 @@
 """The pose-tracking section of the results page: runs with `mapping.pose` other than `gt`.
 
 One table per source, a row per run: the pose error (mean, maximum and final, mm), frames
-not tracked and retried, tracking time per frame with the run's own load (the machines are
+not tracked, retried and re-localised, tracking time per frame with the run's own load (the machines are
 shared, so a time means little without it), and the run's mean-class matching and F-score
 beside those of the `pose=gt` run of the same object and seed among the default-config
 runs of the page (the run a user with the true pose would get).
@@ -70,7 +70,7 @@ def error_cell(runs: Sequence[Run]) -> str:
 
 
 def untracked_cell(runs: Sequence[Run]) -> str:
-    keys = ("pose_frames_not_tracked", "pose_frames_reinitialised")
+    keys = ("pose_frames_not_tracked", "pose_frames_reinitialised", "pose_frames_relocalised")
     return " / ".join(
         fmt(sum(values_of(runs, key)), 0) if values_of(runs, key) else "n/a" for key in keys
     )
@@ -98,7 +98,7 @@ HEADER = [
     "setting",
     "seed",
     "pose error mean / max / final mm",
-    "frames not tracked / retried",
+    "frames not tracked / retried / re-localised",
     "tracking s/frame (1-min load)",
     "mean-class %",
     "majority map % (material)",

@@ -11,9 +11,16 @@ measures decide (thresholds in TrackerConfig, docs/pose.md):
   matrix, rotation measured in metres at `rotation_scale`. Near zero, some motion moves
   no point off the surface (a sphere's spin, a plane's slide) and the solve is a guess
   in that direction.
+
+Both are absolute. A third check is relative: a solve that drifts into a wrong basin
+can still leave most points near a smooth surface, but fewer than the frames before it
+did, and the field, mapped with the drifting poses, then learns to agree. So a solve
+whose inlier share falls well below the recent tracked frames' median fails too.
 """
 
 from __future__ import annotations
+
+from collections.abc import Sequence
 
 import numpy as np
 import torch
@@ -51,4 +58,17 @@ def fit_failure(
         return f"poor fit (inlier share {share:.2f} < {min_inlier_share})"
     if not np.isfinite(cond) or cond < min_conditioning:
         return f"ill-conditioned (conditioning {cond:.2g} < {min_conditioning:g})"
+    return None
+
+
+def relative_failure(share: float, recent: Sequence[float], max_drop: float) -> str | None:
+    """Why a solve fits clearly worse than the recent tracked frames (None: it does not).
+
+    recent: inlier shares of the last tracked frames (no reference while empty).
+    """
+    if not recent:
+        return None
+    reference = float(np.median(np.asarray(recent, dtype=np.float64)))
+    if share < reference - max_drop:
+        return f"poor fit (inlier share {share:.2f}, {reference:.2f} over the last tracked frames)"
     return None

@@ -23,7 +23,9 @@ from neuralfeels_sem.core.errors import ConfigError
 from neuralfeels_sem.core.frame import Frame
 from neuralfeels_sem.core.geometry import check_pose, invert_pose, orthonormalize_pose
 from neuralfeels_sem.mapping.colour_keyframes import ColourKeyframes
+from neuralfeels_sem.mapping.fit_check import relative_failure
 from neuralfeels_sem.mapping.pose_tracker import PoseTracker, TrackerConfig
+from neuralfeels_sem.mapping.relocalise import turned_starts
 from neuralfeels_sem.mapping.se3 import constant_velocity
 from neuralfeels_sem.utils.atomic import atomic_write
 
@@ -149,7 +151,9 @@ class TrackedPose(PoseSource):
         self.fit_curve: list[list[float]] = []  # [frame, inlier share, conditioning] of solves
         self.tracked_frames = 0
         self.reinitialised_frames = 0  # tracked only after a restart from the last pose
+        self.relocalised_frames = 0  # tracked only after re-localisation (relocalise.py)
         self.degenerate_frames = 0  # tracked, some directions held by the motion prior
+        self.recent_shares: list[float] = []  # inlier shares of the last tracked frames
         self.colourless_frames = 0  # solved with colour on but no earlier view to compare
         self.track_seconds = 0.0  # wall time spent tracking (SDF evaluations dominate)
         self.colour = ColourKeyframes(self.tracker.colour, seed)
@@ -202,11 +206,13 @@ class TrackedPose(PoseSource):
         """The frame's tracked pose, or the prediction when no solve fits (counted), and
         whether it was tracked.
 
-        A solve from the constant-velocity prediction that does not fit (fit_check.py) or
-        diverges is retried once from the last pose (no motion assumed): the prediction
-        carries the last frame's motion, and a wrong one can start the solve in a wrong
-        basin. Too few points are not retried: no start can fix them. Colour terms against
-        earlier views (colour_keyframes.py) join both solves.
+        A solve from the constant-velocity prediction that does not fit (fit_check.py:
+        the absolute checks, and the drop against the recent tracked frames) or diverges
+        is retried from the last pose (no motion assumed): the prediction carries the
+        last frame's motion, and a wrong one can start the solve in a wrong basin. If
+        that fails too the frame is re-localised (relocalise.py). Too few points are not
+        retried: no start can fix them. Colour terms against earlier views
+        (colour_keyframes.py) join every solve.
         """
         predicted = constant_velocity(self.history)
         tensors = {source: torch.as_tensor(p) for source, p in points.items()}
@@ -214,22 +220,64 @@ class TrackedPose(PoseSource):
         start = time.perf_counter()
         terms = self.colour.terms(self._view, predicted)
         self.colourless_frames += int(self.colour.enabled and not terms)
-        pose, info = self.tracker.track(tensors, sdf_fn, predicted, predicted, terms)
-        retried = bool(info["skipped"]) and not info["skipped"].startswith("too few points")
-        if retried:
-            pose, info = self.tracker.track(tensors, sdf_fn, self.history[-1], predicted, terms)
+
+        def solve(init: np.ndarray) -> tuple[np.ndarray, dict]:
+            return self._solve(tensors, sdf_fn, init, predicted, terms)
+
+        pose, info = solve(predicted)
+        retried = relocalised = False
+        if _retry(info):
+            retried = True
+            pose, info = solve(self.history[-1])
+        if _retry(info) and self.tracker.relocalise_deg > 0:
+            found = self._relocalise(solve, points)
+            if found is not None:
+                (pose, info), relocalised = found, True
         self.track_seconds += time.perf_counter() - start
         if "inlier_share" in info:
             self.fit_curve.append(
                 [int(frame.index), float(info["inlier_share"]), float(info["conditioning"])]
             )
         if info["skipped"]:
+            log.warning("pose tracking kept the predicted pose: %s", info["skipped"])
             self._keep(info["skipped"].split(" (")[0])
             return predicted, False
         self.tracked_frames += 1
-        self.reinitialised_frames += int(retried)
+        self.reinitialised_frames += int(retried and not relocalised)
+        self.relocalised_frames += int(relocalised)
         self.degenerate_frames += int(info["degenerate"])
+        self.recent_shares = (self.recent_shares + [float(info["inlier_share"])])[
+            -self.tracker.fit_window :
+        ]
         return pose, True
+
+    def _solve(self, tensors, sdf_fn, init: np.ndarray, predicted: np.ndarray, terms):
+        """One tracker solve from `init`, failed also when it fits clearly worse than the
+        recent tracked frames did (fit_check.relative_failure)."""
+        pose, info = self.tracker.track(tensors, sdf_fn, init, predicted, terms)
+        if not info["skipped"]:
+            info["skipped"] = relative_failure(
+                info["inlier_share"], self.recent_shares, self.tracker.max_inlier_drop
+            )
+        return pose, info
+
+    def _relocalise(self, solve, points: dict[str, np.ndarray]) -> tuple[np.ndarray, dict] | None:
+        """The best fitting passing solve (highest inlier share) from the last pose turned
+        about each object axis through the frame's points (relocalise.py); None: none passed."""
+        last = self.history[-1]
+        world = np.concatenate([np.asarray(p).reshape(-1, 3) for p in points.values()])
+        world = world[np.isfinite(world).all(axis=1)]
+        if not len(world):
+            return None
+        centre = (invert_pose(last) @ np.append(world.mean(axis=0), 1.0))[:3]
+        best = None
+        for init in turned_starts(last, centre, self.tracker.relocalise_deg):
+            pose, info = solve(init)
+            if not info["skipped"] and (
+                best is None or info["inlier_share"] > best[1]["inlier_share"]
+            ):
+                best = (pose, info)
+        return best
 
     def _surface_points(self) -> np.ndarray:
         if self._error_points is None:
@@ -263,6 +311,7 @@ class TrackedPose(PoseSource):
             "pose_frames_kept": dict(self.kept),
             "pose_frames_not_tracked": self.frames_not_tracked,
             "pose_frames_reinitialised": self.reinitialised_frames,
+            "pose_frames_relocalised": self.relocalised_frames,
             "pose_frames_degenerate": self.degenerate_frames,
             "pose_frames_without_colour": self.colourless_frames,
             "pose_colour_keyframes": len(self.colour.keyframes),
@@ -309,6 +358,8 @@ class TrackedPose(PoseSource):
             "fit_curve": [list(row) for row in self.fit_curve],
             "tracked_frames": self.tracked_frames,
             "reinitialised_frames": self.reinitialised_frames,
+            "relocalised_frames": self.relocalised_frames,
+            "recent_shares": list(self.recent_shares),
             "degenerate_frames": self.degenerate_frames,
             "colourless_frames": self.colourless_frames,
             "track_seconds": self.track_seconds,
@@ -323,6 +374,8 @@ class TrackedPose(PoseSource):
         self.fit_curve = [list(row) for row in state.get("fit_curve", [])]
         self.tracked_frames = int(state.get("tracked_frames", 0))
         self.reinitialised_frames = int(state.get("reinitialised_frames", 0))
+        self.relocalised_frames = int(state.get("relocalised_frames", 0))
+        self.recent_shares = [float(v) for v in state.get("recent_shares", [])]
         self.degenerate_frames = int(state.get("degenerate_frames", 0))
         self.colourless_frames = int(state.get("colourless_frames", 0))
         self.track_seconds = float(state.get("track_seconds", 0.0))
@@ -331,6 +384,11 @@ class TrackedPose(PoseSource):
             self.tracker.generator.set_state(state["generator"])
         if self.history:
             self.last_estimate = self.history[-1]
+
+
+def _retry(info: dict) -> bool:
+    """Whether a failed solve is worth another start (too few points: none can fix it)."""
+    return bool(info["skipped"]) and not info["skipped"].startswith("too few points")
 
 
 def build_pose_source(pose: str, obj=None, tracker: TrackerConfig | None = None) -> PoseSource:

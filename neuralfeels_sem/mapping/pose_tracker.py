@@ -67,6 +67,14 @@ class TrackerConfig:
     inlier_m, min_inlier_share, min_conditioning: a solve counts as tracked only when at
         least min_inlier_share of the (weighted) points end within inlier_m of the
         surface and its conditioning (fit_check.py) is at least min_conditioning.
+    fit_window, max_inlier_drop: a solve whose inlier share falls more than
+        max_inlier_drop below the median of the last fit_window tracked frames is a poor
+        fit too (1 switches this relative check off): a slide into a wrong basin keeps
+        most points near a smooth surface, but fewer than before.
+    relocalise_deg: a frame whose solves from the prediction and from the last pose both
+        fail is solved again from the last pose turned by +-relocalise_deg about each
+        object axis (through the frame's points), and the best fitting solve is kept
+        (0 switches re-localisation off).
     """
 
     iterations: int = 8  # Levenberg-Marquardt iterations per frame (most frames stop sooner)
@@ -88,6 +96,9 @@ class TrackerConfig:
     inlier_m: float = 0.002  # about 5x the camera's depth noise on the surface
     min_inlier_share: float = 0.5
     min_conditioning: float = 1.0e-4
+    fit_window: int = 10
+    max_inlier_drop: float = 0.1
+    relocalise_deg: float = 15.0
     tolerance: float = 1.0e-6  # stop when a step changes the pose less than this (m, rad)
     colour: ColourConfig = field(default_factory=ColourConfig)  # colour_keyframes.py
     seed: int = 0
@@ -110,6 +121,16 @@ class TrackerConfig:
             raise ValueError(
                 f"mapping.tracker needs 0 <= min_inlier_share <= 1 ({self.min_inlier_share}) "
                 f"and min_conditioning >= 0 ({self.min_conditioning})"
+            )
+        if self.fit_window < 1 or not 0 < self.max_inlier_drop <= 1:
+            raise ValueError(
+                f"mapping.tracker needs fit_window >= 1 ({self.fit_window}) and "
+                f"0 < max_inlier_drop <= 1 ({self.max_inlier_drop}; 1 switches the check off)"
+            )
+        if not 0 <= self.relocalise_deg < 90:
+            raise ValueError(
+                f"mapping.tracker.relocalise_deg={self.relocalise_deg} must be in [0, 90) "
+                "(0 switches re-localisation off)"
             )
         if self.prior_weight < 0:
             raise ValueError(f"mapping.tracker.prior_weight={self.prior_weight} must be >= 0")
@@ -164,6 +185,9 @@ class PoseTracker:
         self.inlier_m = float(config.inlier_m)
         self.min_inlier_share = float(config.min_inlier_share)
         self.min_conditioning = float(config.min_conditioning)
+        self.fit_window = int(config.fit_window)
+        self.max_inlier_drop = float(config.max_inlier_drop)
+        self.relocalise_deg = float(config.relocalise_deg)
         self.colour = ColourConfig.copy_of(config.colour)
         self.generator = torch.Generator().manual_seed(int(config.seed))
 
@@ -365,7 +389,7 @@ class PoseTracker:
 
     def _reject(self, fallback: np.ndarray, info: dict, reason: str) -> tuple[np.ndarray, dict]:
         info["skipped"] = reason
-        log.warning("pose tracking kept the predicted pose: %s", reason)
+        log.debug("pose tracking solve failed: %s", reason)
         return fallback, info
 
     def _divergence(self, result: np.ndarray, fallback: np.ndarray) -> str | None:

@@ -42,6 +42,7 @@ def tracked_metrics(value: float, error: float, seconds: float, load: float, **e
         pose_error_final_mm=error + 0.5,
         pose_frames_not_tracked=1,
         pose_frames_reinitialised=2,
+        pose_frames_relocalised=1,
         pose_track_s_per_frame=seconds,
         load_avg=[load, 1.0, 1.0],
         **extra,
@@ -71,7 +72,7 @@ def test_tracked_runs_get_the_pose_section_beside_the_pose_gt_runs(
     rows = {tuple(r[:2]): r[2:] for r in table_rows(pose)}
     assert rows[("object=patched_toy", "0")] == [
         "1.00 / 2.00 / 1.50",
-        "1 / 2",
+        "1 / 2 / 1",
         "2.00 (4)",
         "90.0",
         "50.0 (plastic)",
@@ -80,7 +81,7 @@ def test_tracked_runs_get_the_pose_section_beside_the_pose_gt_runs(
         "0.980",
     ]
     mean_row = rows[("object=patched_toy", "**mean**")]
-    assert mean_row[:4] == ["2.00 / 4.00 / 2.50", "2 / 4", "1.50 (3)", "85.0"]
+    assert mean_row[:4] == ["2.00 / 4.00 / 2.50", "2 / 4 / 2", "1.50 (3)", "85.0"]
     assert mean_row[5:] == ["94.0", "0.900", "0.985"]
     assert rows[("object=patchwork", "0")][5] == "n/a"
     # Tracked runs are reported here only: not as another setting, not in the object tables.

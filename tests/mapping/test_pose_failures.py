@@ -5,8 +5,6 @@ against finite differences."""
 
 from __future__ import annotations
 
-import logging
-
 import numpy as np
 import pytest
 import torch
@@ -23,15 +21,13 @@ def sphere(x: torch.Tensor) -> torch.Tensor:
     return x.norm(dim=1) - SPHERE_R
 
 
-def test_a_frame_that_cannot_fit_is_kept_at_the_prediction(caplog) -> None:
+def test_a_frame_that_cannot_fit_is_kept_at_the_prediction() -> None:
     """Points scattered through space (no surface explains them) are not 'tracked'."""
     cloud = np.random.default_rng(0).uniform(-0.06, 0.06, (600, 3)) + (0.0, 0.0, 0.1)
     predicted = pose((0, 0, 5), (0.0, 0.0, 0.1))
-    with caplog.at_level(logging.WARNING):
-        est, info = PoseTracker().track({"camera": cloud}, sphere_box_sdf, predicted, predicted)
+    est, info = PoseTracker().track({"camera": cloud}, sphere_box_sdf, predicted, predicted)
     assert info["skipped"].startswith("poor fit") and info["inlier_share"] < 0.5
     np.testing.assert_array_equal(est, predicted)
-    assert "poor fit" in caplog.text
 
 
 def test_a_good_frame_passes_the_fit_checks() -> None:
