@@ -154,6 +154,7 @@ class TrackedPose(PoseSource):
         self.relocalised_frames = 0  # tracked only after re-localisation (relocalise.py)
         self.degenerate_frames = 0  # tracked, some directions held by the motion prior
         self.recent_shares: list[float] = []  # inlier shares of the last tracked frames
+        self.kept_in_a_row = 0  # frames kept at the prediction since the last tracked one
         self.colourless_frames = 0  # solved with colour on but no earlier view to compare
         self.track_seconds = 0.0  # wall time spent tracking (SDF evaluations dominate)
         self.colour = ColourKeyframes(self.tracker.colour, seed)
@@ -241,7 +242,9 @@ class TrackedPose(PoseSource):
         if info["skipped"]:
             log.warning("pose tracking kept the predicted pose: %s", info["skipped"])
             self._keep(info["skipped"].split(" (")[0])
+            self.kept_in_a_row += 1
             return predicted, False
+        self.kept_in_a_row = 0
         self.tracked_frames += 1
         self.reinitialised_frames += int(retried and not relocalised)
         self.relocalised_frames += int(relocalised)
@@ -253,9 +256,12 @@ class TrackedPose(PoseSource):
 
     def _solve(self, tensors, sdf_fn, init: np.ndarray, predicted: np.ndarray, terms):
         """One tracker solve from `init`, failed also when it fits clearly worse than the
-        recent tracked frames did (fit_check.relative_failure)."""
+        recent tracked frames did (fit_check.relative_failure). After fit_window frames
+        in a row were kept that reference is stale (the view has changed): the absolute
+        checks alone decide until a frame is tracked again."""
         pose, info = self.tracker.track(tensors, sdf_fn, init, predicted, terms)
-        if not info["skipped"]:
+        stale = self.kept_in_a_row >= self.tracker.fit_window
+        if not info["skipped"] and not stale:
             info["skipped"] = relative_failure(
                 info["inlier_share"], self.recent_shares, self.tracker.max_inlier_drop
             )
@@ -360,6 +366,7 @@ class TrackedPose(PoseSource):
             "reinitialised_frames": self.reinitialised_frames,
             "relocalised_frames": self.relocalised_frames,
             "recent_shares": list(self.recent_shares),
+            "kept_in_a_row": self.kept_in_a_row,
             "degenerate_frames": self.degenerate_frames,
             "colourless_frames": self.colourless_frames,
             "track_seconds": self.track_seconds,
@@ -376,6 +383,7 @@ class TrackedPose(PoseSource):
         self.reinitialised_frames = int(state.get("reinitialised_frames", 0))
         self.relocalised_frames = int(state.get("relocalised_frames", 0))
         self.recent_shares = [float(v) for v in state.get("recent_shares", [])]
+        self.kept_in_a_row = int(state.get("kept_in_a_row", 0))
         self.degenerate_frames = int(state.get("degenerate_frames", 0))
         self.colourless_frames = int(state.get("colourless_frames", 0))
         self.track_seconds = float(state.get("track_seconds", 0.0))

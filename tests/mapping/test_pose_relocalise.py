@@ -76,9 +76,11 @@ class ScatteredMapper(FakeMapper):
 
 def test_a_clear_drop_in_fit_is_not_tracked(obj, grid, caplog) -> None:
     """A frame whose best pose leaves 30 % of its points off the surface passes the absolute
-    check (inlier share >= 0.5) but not the drop against the frames before it."""
+    check (inlier share >= 0.5) but not the drop against the frames before it; after
+    fit_window frames kept in a row that reference is stale and the next such frame counts."""
     still = pose((0, 0, 0), (0.0, 0.0, 0.12))
-    source = TrackedPose("track", obj, PoseTracker(TrackerConfig(rotation_scale=0.03)))
+    config = TrackerConfig(rotation_scale=0.03, fit_window=3)
+    source = TrackedPose("track", obj, PoseTracker(config))
     for k in range(4):
         source.estimate(frame_at(k, still), FakeMapper(obj, sdf=grid))
     assert source.metrics()["pose_frames_tracked"] == 3
@@ -89,6 +91,10 @@ def test_a_clear_drop_in_fit_is_not_tracked(obj, grid, caplog) -> None:
     assert 0.5 < share < 0.85 and m["pose_frames_kept"] == {"poor fit": 1}
     assert caplog.text.count("kept the predicted pose") == 1
     assert "over the last tracked frames" in caplog.text
+    for k in range(5, 8):
+        source.estimate(frame_at(k, still), ScatteredMapper(obj, grid, 0.3))
+    m = source.metrics()
+    assert m["pose_frames_kept"] == {"poor fit": 3} and m["pose_frames_tracked"] == 4
 
 
 @pytest.mark.parametrize("relocalise_deg", [20.0, 0.0])
