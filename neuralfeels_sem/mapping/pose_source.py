@@ -61,6 +61,7 @@ class PoseSource:
     """Pose per frame for the mapper; `gt` behaviour (the frame's own pose)."""
 
     name = "gt"
+    fuse = True  # whether the mapper should fuse the last estimated frame into the map
 
     def estimate(self, frame: Frame, mapper: MapView | None) -> np.ndarray:
         """world_T_object to map this frame with."""
@@ -154,7 +155,8 @@ class TrackedPose(PoseSource):
         self.relocalised_frames = 0  # tracked only after re-localisation (relocalise.py)
         self.degenerate_frames = 0  # tracked, some directions held by the motion prior
         self.recent_shares: list[float] = []  # inlier shares of the last tracked frames
-        self.kept_in_a_row = 0  # frames kept at the prediction since the last tracked one
+        self.kept_in_a_row = 0  # frames not tracked since the last tracked one
+        self.not_fused = 0  # frames the mapper did not fuse: their pose was not tracked
         self.colourless_frames = 0  # solved with colour on but no earlier view to compare
         self.track_seconds = 0.0  # wall time spent tracking (SDF evaluations dominate)
         self.colour = ColourKeyframes(self.tracker.colour, seed)
@@ -175,7 +177,7 @@ class TrackedPose(PoseSource):
 
     def estimate(self, frame: Frame, mapper: MapView) -> np.ndarray:
         points = self._world_points(frame, mapper) if self.history else None
-        tracked = False
+        tracked, self.fuse = False, True
         if not self.history:
             pose, tracked = np.asarray(frame.world_T_object, dtype=np.float64).copy(), True
         elif self.name == "track" and not mapper.has_surface:
@@ -183,6 +185,10 @@ class TrackedPose(PoseSource):
             self._keep("no surface learned yet")
         else:
             pose, tracked = self._track(frame, mapper, points)
+            # Only a tracked pose writes to the map (the warm-up frames above build it): a
+            # frame mapped with a pose that fits badly teaches the field to agree with it.
+            self.fuse = tracked
+            self.not_fused += int(not tracked)
         pose = orthonormalize_pose(pose)
         if points is None and self.colour.enabled:
             self._world_points(frame, mapper)  # the first frame: its colour view
@@ -204,8 +210,7 @@ class TrackedPose(PoseSource):
     def _track(
         self, frame: Frame, mapper: MapView, points: dict[str, np.ndarray]
     ) -> tuple[np.ndarray, bool]:
-        """The frame's tracked pose, or the prediction when no solve fits (counted), and
-        whether it was tracked.
+        """The frame's pose and whether it was tracked (passed every check).
 
         A solve from the constant-velocity prediction that does not fit (fit_check.py:
         the absolute checks, and the drop against the recent tracked frames) or diverges
@@ -214,6 +219,10 @@ class TrackedPose(PoseSource):
         that fails too the frame is re-localised (relocalise.py). Too few points are not
         retried: no start can fix them. Colour terms against earlier views
         (colour_keyframes.py) join every solve.
+
+        A frame no solve fits is not tracked (counted); it takes the solve that failed
+        the relative check alone with the highest inlier share, if any (it still fits the
+        frame better than a blind extrapolation), else the prediction.
         """
         predicted = constant_velocity(self.history)
         tensors = {source: torch.as_tensor(p) for source, p in points.items()}
@@ -221,9 +230,16 @@ class TrackedPose(PoseSource):
         start = time.perf_counter()
         terms = self.colour.terms(self._view, predicted)
         self.colourless_frames += int(self.colour.enabled and not terms)
+        closest: tuple[np.ndarray, dict] | None = None  # best solve failing the drop only
 
         def solve(init: np.ndarray) -> tuple[np.ndarray, dict]:
-            return self._solve(tensors, sdf_fn, init, predicted, terms)
+            nonlocal closest
+            pose, info = self._solve(tensors, sdf_fn, init, predicted, terms)
+            if info.get("relative") and (
+                closest is None or info["inlier_share"] > closest[1]["inlier_share"]
+            ):
+                closest = (pose, info)
+            return pose, info
 
         pose, info = solve(predicted)
         retried = relocalised = False
@@ -235,15 +251,17 @@ class TrackedPose(PoseSource):
             if found is not None:
                 (pose, info), relocalised = found, True
         self.track_seconds += time.perf_counter() - start
+        if info["skipped"] and closest is not None:
+            pose, info = closest
         if "inlier_share" in info:
             self.fit_curve.append(
                 [int(frame.index), float(info["inlier_share"]), float(info["conditioning"])]
             )
         if info["skipped"]:
-            log.warning("pose tracking kept the predicted pose: %s", info["skipped"])
+            log.warning("pose tracking: frame %d not tracked: %s", frame.index, info["skipped"])
             self._keep(info["skipped"].split(" (")[0])
             self.kept_in_a_row += 1
-            return predicted, False
+            return (pose if info.get("relative") else predicted), False
         self.kept_in_a_row = 0
         self.tracked_frames += 1
         self.reinitialised_frames += int(retried and not relocalised)
@@ -256,15 +274,16 @@ class TrackedPose(PoseSource):
 
     def _solve(self, tensors, sdf_fn, init: np.ndarray, predicted: np.ndarray, terms):
         """One tracker solve from `init`, failed also when it fits clearly worse than the
-        recent tracked frames did (fit_check.relative_failure). After fit_window frames
-        in a row were kept that reference is stale (the view has changed): the absolute
-        checks alone decide until a frame is tracked again."""
+        recent tracked frames did (fit_check.relative_failure; info["relative"] marks it).
+        After fit_window frames in a row were not tracked that reference is stale (the
+        view has changed): the absolute checks alone decide until one is tracked again."""
         pose, info = self.tracker.track(tensors, sdf_fn, init, predicted, terms)
         stale = self.kept_in_a_row >= self.tracker.fit_window
         if not info["skipped"] and not stale:
             info["skipped"] = relative_failure(
                 info["inlier_share"], self.recent_shares, self.tracker.max_inlier_drop
             )
+            info["relative"] = info["skipped"] is not None
         return pose, info
 
     def _relocalise(self, solve, points: dict[str, np.ndarray]) -> tuple[np.ndarray, dict] | None:
@@ -295,7 +314,7 @@ class TrackedPose(PoseSource):
     # ---------------------------------------------------------------- outputs
     @property
     def frames_not_tracked(self) -> int:
-        """Frames after the first that kept the predicted pose, for any reason."""
+        """Frames after the first that were not tracked, for any reason."""
         return sum(self.kept.values())
 
     def notes(self) -> list[str]:
@@ -304,8 +323,8 @@ class TrackedPose(PoseSource):
             return []
         reasons = ", ".join(f"{n} {why}" for why, n in sorted(self.kept.items()))
         return [
-            f"pose: {self.frames_not_tracked} frames not tracked, kept at the predicted pose "
-            f"({reasons}); {self.tracked_frames} tracked"
+            f"pose: {self.frames_not_tracked} frames not tracked ({reasons}), "
+            f"{self.not_fused} of them not mapped; {self.tracked_frames} tracked"
         ]
 
     def metrics(self) -> dict:
@@ -318,6 +337,7 @@ class TrackedPose(PoseSource):
             "pose_frames_not_tracked": self.frames_not_tracked,
             "pose_frames_reinitialised": self.reinitialised_frames,
             "pose_frames_relocalised": self.relocalised_frames,
+            "pose_frames_not_mapped": self.not_fused,
             "pose_frames_degenerate": self.degenerate_frames,
             "pose_frames_without_colour": self.colourless_frames,
             "pose_colour_keyframes": len(self.colour.keyframes),
@@ -367,6 +387,7 @@ class TrackedPose(PoseSource):
             "relocalised_frames": self.relocalised_frames,
             "recent_shares": list(self.recent_shares),
             "kept_in_a_row": self.kept_in_a_row,
+            "not_fused": self.not_fused,
             "degenerate_frames": self.degenerate_frames,
             "colourless_frames": self.colourless_frames,
             "track_seconds": self.track_seconds,
@@ -384,6 +405,7 @@ class TrackedPose(PoseSource):
         self.relocalised_frames = int(state.get("relocalised_frames", 0))
         self.recent_shares = [float(v) for v in state.get("recent_shares", [])]
         self.kept_in_a_row = int(state.get("kept_in_a_row", 0))
+        self.not_fused = int(state.get("not_fused", 0))
         self.degenerate_frames = int(state.get("degenerate_frames", 0))
         self.colourless_frames = int(state.get("colourless_frames", 0))
         self.track_seconds = float(state.get("track_seconds", 0.0))

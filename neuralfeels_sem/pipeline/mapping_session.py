@@ -318,10 +318,13 @@ class MappingSession:
 
     def _add(self, frame: Frame, labels: dict, steps: int | None) -> None:
         """Log the frame's classified touches, estimate its pose and give it to the mapper
-        (`steps`: see OnlineMapper.add_frame)."""
+        (`steps`: see OnlineMapper.add_frame) unless the pose source does not trust it."""
         self.scorer.log_touches(frame, labels)
         world_T_object = self.pose_source.estimate(frame, self.mapper)
-        self.mapper.add_frame(frame, labels, world_T_object=world_T_object, steps=steps)
+        if self.pose_source.fuse:
+            self.mapper.add_frame(frame, labels, world_T_object=world_T_object, steps=steps)
+        else:  # its pose was not tracked: the field learns on, but not from this frame
+            self.mapper.optimize(steps or self.mapper.config.steps_per_frame)
         self.segment.add_frame(frame.index, frame.time_s)
         self.last_index = frame.index
         for observer in self.observers:

@@ -108,7 +108,7 @@ def test_a_pose_source_counts_and_notes_frames_not_tracked() -> None:
     assert m["pose_frames_tracked"] == 0 and m["pose_frames_not_tracked"] == 3
     assert m["pose_frames_kept"] == {"poor fit": 3}
     assert m["pose_notes"] == [
-        "pose: 3 frames not tracked, kept at the predicted pose (3 poor fit); 0 tracked"
+        "pose: 3 frames not tracked (3 poor fit), 3 of them not mapped; 0 tracked"
     ]
     assert [row[0] for row in m["pose_fit_curve"]] == [1, 2, 3]
 
