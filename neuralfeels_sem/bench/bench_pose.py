@@ -1,7 +1,7 @@
 """Cost of pose tracking per frame, and of the ground-truth grid SDF it can track against.
 
 Workloads: a frame of 1000 camera + 4 x 200 touch points aligned with the default
-settings (camera points only, up to 1000: touch is not tracked by default, docs/pose.md)
+settings (touch at half the camera's weight, up to 200 points per finger; docs/pose.md)
 (a) to the grid SDF of a shipped object (`track_known_shape`) and (b) to a SemanticField
 of the default size (`track`), starting 3 degrees and 2 mm off. Reports milliseconds per
 tracked frame, LM iterations, the residual pose error, the one-off cost of building the

@@ -60,10 +60,13 @@ class TrackerConfig:
         Weak on purpose: it only holds directions the points cannot see. At 0.01 it held
         the zero-velocity start of a run and the tracker lagged the true motion.
     source_weights: per-point weight by source ("camera", or a finger name; "tactile"
-        applies to every finger); 0 drops that modality from tracking. Touch is off by
-        default: a DIGIT holds its place while the surface slides under it, and the field
-        under a fingertip is learned from that fingertip alone (the camera cannot see
-        there), so touch points fit "the object did not move" best (docs/pose.md).
+        applies to every finger); 0 drops that modality from tracking. Touch is weighted
+        below the camera: a DIGIT holds its place while the surface slides under it, so
+        a touch alone fits "the object did not move" well, but beside the camera points
+        the touches pin what a smooth, partly hidden view leaves loose, such as the spin
+        of a round handle about its own axis (docs/pose.md).
+    max_points_per_source, max_points_per_finger: the camera's and each finger's points
+        beyond these are subsampled at random each frame (the SDF batch sets the cost).
     inlier_m, min_inlier_share, min_conditioning: a solve counts as tracked only when at
         least min_inlier_share of the (weighted) points end within inlier_m of the
         surface and its conditioning (fit_check.py) is at least min_conditioning.
@@ -89,9 +92,10 @@ class TrackerConfig:
     max_step_rad: float = 0.2
     max_motion_m: float = 0.03
     max_motion_rad: float = 0.5
-    max_points_per_source: int = 1000  # camera, and each finger
+    max_points_per_source: int = 1000  # camera points (a random subset beyond)
+    max_points_per_finger: int = 200  # each finger's touch points
     source_weights: dict[str, float] = field(
-        default_factory=lambda: {"camera": 1.0, "tactile": 0.0}
+        default_factory=lambda: {"camera": 1.0, "tactile": 0.5}
     )
     inlier_m: float = 0.002  # about 5x the camera's depth noise on the surface
     min_inlier_share: float = 0.5
@@ -134,10 +138,11 @@ class TrackerConfig:
             )
         if self.prior_weight < 0:
             raise ValueError(f"mapping.tracker.prior_weight={self.prior_weight} must be >= 0")
-        if self.min_points < 6 or self.max_points_per_source < 1:
+        if self.min_points < 6 or min(self.max_points_per_source, self.max_points_per_finger) < 1:
             raise ValueError(
-                f"mapping.tracker needs min_points >= 6 ({self.min_points}; six pose unknowns) "
-                f"and max_points_per_source >= 1 ({self.max_points_per_source})"
+                f"mapping.tracker needs min_points >= 6 ({self.min_points}; six pose unknowns), "
+                f"max_points_per_source >= 1 ({self.max_points_per_source}) and "
+                f"max_points_per_finger >= 1 ({self.max_points_per_finger})"
             )
         if any(w < 0 for w in self.source_weights.values()):
             raise ValueError(
@@ -176,6 +181,7 @@ class PoseTracker:
         self.prior_weight = float(config.prior_weight)
         self.rotation_scale = float(config.rotation_scale)
         self.max_points_per_source = config.max_points_per_source
+        self.max_points_per_finger = config.max_points_per_finger
         self.source_weights = dict(config.source_weights)
         self.tolerance = float(config.tolerance)
         self.max_step_m = float(config.max_step_m)
@@ -208,11 +214,9 @@ class PoseTracker:
             p = p[torch.isfinite(p).all(dim=1)]
             if w == 0 or len(p) == 0:
                 continue
-            if len(p) > self.max_points_per_source:
-                keep = torch.randperm(len(p), generator=self.generator)[
-                    : self.max_points_per_source
-                ]
-                p = p[keep]
+            cap = self.max_points_per_source if source == "camera" else self.max_points_per_finger
+            if len(p) > cap:
+                p = p[torch.randperm(len(p), generator=self.generator)[:cap]]
             pts.append(p)
             weights.append(torch.full((len(p),), w, dtype=torch.float64))
         if not pts:

@@ -175,7 +175,7 @@ def test_frame_with_too_few_points_keeps_the_prediction(obj, caplog) -> None:
     with caplog.at_level(logging.WARNING):
         est = source.estimate(frame_at(1, poses[1]), FakeMapper(obj, points=60))
     np.testing.assert_array_equal(est, poses[0])  # the prediction from one pose
-    assert "too few points (10 < 100)" in caplog.text  # 10 camera points; touch is not tracked
+    assert "too few points (60 < 100)" in caplog.text  # 10 camera and 50 touch points
     assert source.metrics()["pose_frames_kept"] == {"too few points": 1}
 
 
