@@ -13,6 +13,7 @@ from __future__ import annotations
 
 from collections.abc import Sequence
 
+from neuralfeels_sem.eval.results_pose import is_tracked
 from neuralfeels_sem.eval.results_runs import Run, Source, get
 from neuralfeels_sem.eval.results_tables import (
     fmt,
@@ -235,7 +236,8 @@ def generated_section(sources: Sequence[Source]) -> list[str]:
     of every source pooled, so settings from different sweeps compare on common objects."""
     lines, development = [], []
     for source in sources:
-        runs = [r for r in source.runs if is_generated(r)]
+        # tracked runs on generated objects are in the pose-tracking section
+        runs = [r for r in source.runs if is_generated(r) and not is_tracked(r)]
         development += [r for r in runs if object_seed(r) < EVALUATION_SEEDS_FROM]
         evaluation = [r for r in runs if object_seed(r) >= EVALUATION_SEEDS_FROM]
         if evaluation:

@@ -80,3 +80,22 @@ def test_development_objects_of_several_sweeps_are_compared_together(tmp_path: P
     assert "Setting: today's defaults (oracles: pose); development objects." in part
     assert f"Setting: {surprise}; development objects." not in part
     assert "multirun/dev_b`" in part and "evaluation objects. Mean-class" in part
+
+
+def test_tracked_runs_on_generated_objects_go_to_the_pose_section(tmp_path: Path) -> None:
+    """Beside the `pose=gt` run of the same object from another sweep; they are not a
+    setting of the development comparison (which would shrink it to the objects they ran)."""
+    reference, tracked = tmp_path / "multirun" / "dev", tmp_path / "multirun" / "dev_track"
+    write_generated(reference, {1: 80.0, 2: 60.0, 3: 70.0}, [])
+    for k, seed in enumerate((1, 2)):
+        metrics = generated_metrics(seed, 75.0 + k, 0.8)
+        metrics.update(oracles=[], pose_error_mm=1.0 + k, pose_error_max_mm=2.0,
+                       pose_error_final_mm=1.5, pose_frames_not_tracked=0)  # fmt: skip
+        overrides = ["object=random", f"object.seed={seed}", "seed=0", "mapping.pose=track"]
+        write_job(tracked, str(k), overrides, metrics)
+    page = generate(tmp_path, reference, tracked)
+    part = section(page, "Generated objects")
+    assert "Pooled on" not in part and "mapping.pose" not in part  # one setting only
+    pose = section(page, "Pose tracking")
+    row = cells(pose, "object=random, object.seed=2")
+    assert row[2] == "2.00 / 2.00 / 1.50" and row[5] == "76.0" and row[7] == "60.0"
