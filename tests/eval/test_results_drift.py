@@ -112,3 +112,16 @@ def test_a_setting_added_since_reads_as_the_value_runs_before_it_had() -> None:
     assert drift({"classifier": {"max_patches": 8, "patch_probe": 2}}, {}, today) == {}
     # Without the key it came beside (another classifier, a partial record): skipped.
     assert drift({"classifier": {"_target_": "x"}}, {}, today) == {}
+
+
+def test_the_per_finger_cap_reads_as_the_camera_cap_runs_before_it_had() -> None:
+    tracker = {"max_points_per_source": 1000, "source_weights": {"camera": 1.0, "tactile": 0.1}}
+    today = {
+        "mapping.tracker.max_points_per_source": 1000,
+        "mapping.tracker.max_points_per_finger": 200,
+        "mapping.tracker.source_weights.tactile": 0.5,
+    }
+    assert drift({"mapping": {"tracker": tracker}}, {}, today) == {
+        "mapping.tracker.max_points_per_finger": (1000, 200),
+        "mapping.tracker.source_weights.tactile": (0.1, 0.5),
+    }
