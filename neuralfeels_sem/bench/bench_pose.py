@@ -22,7 +22,7 @@ import torch
 from neuralfeels_sem.core.geometry import transform_points
 from neuralfeels_sem.core.materials import DEFAULT_MATERIALS
 from neuralfeels_sem.mapping.known_shape import GridSdf, mesh_sdf_grid
-from neuralfeels_sem.mapping.pose_source import average_3d_error
+from neuralfeels_sem.mapping.pose_error import average_3d_error
 from neuralfeels_sem.mapping.pose_tracker import PoseTracker, TrackerConfig, se3_exp
 from neuralfeels_sem.objects.library import make_object
 

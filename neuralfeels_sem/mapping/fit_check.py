@@ -26,6 +26,9 @@ import numpy as np
 import torch
 from torch import Tensor
 
+from neuralfeels_sem.core.geometry import invert_pose
+from neuralfeels_sem.mapping.se3 import se3_log
+
 
 def inlier_share(r: Tensor, weights: Tensor, inlier_m: float) -> float:
     """Source-weighted share (0-1) of residuals r (N,) with |r| <= inlier_m."""
@@ -71,4 +74,18 @@ def relative_failure(share: float, recent: Sequence[float], max_drop: float) -> 
     reference = float(np.median(np.asarray(recent, dtype=np.float64)))
     if share < reference - max_drop:
         return f"poor fit (inlier share {share:.2f}, {reference:.2f} over the last tracked frames)"
+    return None
+
+
+def divergence(
+    result: np.ndarray, fallback: np.ndarray, max_motion_m: float, max_motion_rad: float
+) -> str | None:
+    """Why a solve's `result` counts as diverged (None: it stayed within the caps of its
+    distance and turn from `fallback`, the prediction)."""
+    if not np.isfinite(result).all():
+        return "diverged (non-finite pose)"
+    moved = float(np.linalg.norm(result[:3, 3] - fallback[:3, 3]))
+    turned = float(np.linalg.norm(se3_log(invert_pose(fallback) @ result)[3:]))
+    if moved > max_motion_m or turned > max_motion_rad:
+        return f"diverged ({moved:.3g} m, {turned:.3g} rad from the prediction)"
     return None

@@ -21,13 +21,13 @@ import torch
 
 from neuralfeels_sem.core.errors import ConfigError
 from neuralfeels_sem.core.frame import Frame
-from neuralfeels_sem.core.geometry import check_pose, invert_pose, orthonormalize_pose
+from neuralfeels_sem.core.geometry import invert_pose, orthonormalize_pose
 from neuralfeels_sem.mapping.colour_keyframes import ColourKeyframes
 from neuralfeels_sem.mapping.fit_check import relative_failure
+from neuralfeels_sem.mapping.pose_error import average_3d_error, write_pose_error_plot
 from neuralfeels_sem.mapping.pose_tracker import PoseTracker, TrackerConfig
-from neuralfeels_sem.mapping.relocalise import turned_starts
+from neuralfeels_sem.mapping.relocalise import relocalise
 from neuralfeels_sem.mapping.se3 import constant_velocity
-from neuralfeels_sem.utils.atomic import atomic_write
 
 log = logging.getLogger(__name__)
 
@@ -96,16 +96,6 @@ class PoseSource:
 
     def load_state(self, state: dict) -> None:
         pass
-
-
-def average_3d_error(
-    world_T_est: np.ndarray, world_T_gt: np.ndarray, surface_points: np.ndarray
-) -> float:
-    """Mean distance (metres) between object surface points placed by the two poses."""
-    check_pose(world_T_est, "world_T_est")
-    check_pose(world_T_gt, "world_T_gt")
-    diff = world_T_est - world_T_gt
-    return float(np.linalg.norm(surface_points @ diff[:3, :3].T + diff[:3, 3], axis=1).mean())
 
 
 class TrackedPose(PoseSource):
@@ -247,21 +237,26 @@ class TrackedPose(PoseSource):
             retried = True
             pose, info = solve(self.history[-1])
         if _retry(info) and self.tracker.relocalise_deg > 0:
-            found = self._relocalise(solve, points)
+            found = relocalise(solve, self.history[-1], points, self.tracker.relocalise_deg)
             if found is not None:
                 (pose, info), relocalised = found, True
         self.track_seconds += time.perf_counter() - start
         if info["skipped"] and closest is not None:
             pose, info = closest
+        tracked = self._record(frame.index, info, retried, relocalised)
+        return (pose if tracked or info.get("relative") else predicted), tracked
+
+    def _record(self, index: int, info: dict, retried: bool, relocalised: bool) -> bool:
+        """Count the frame's outcome (its final solve's `info`); whether it was tracked."""
         if "inlier_share" in info:
             self.fit_curve.append(
-                [int(frame.index), float(info["inlier_share"]), float(info["conditioning"])]
+                [int(index), float(info["inlier_share"]), float(info["conditioning"])]
             )
         if info["skipped"]:
-            log.warning("pose tracking: frame %d not tracked: %s", frame.index, info["skipped"])
+            log.warning("pose tracking: frame %d not tracked: %s", index, info["skipped"])
             self._keep(info["skipped"].split(" (")[0])
             self.kept_in_a_row += 1
-            return (pose if info.get("relative") else predicted), False
+            return False
         self.kept_in_a_row = 0
         self.tracked_frames += 1
         self.reinitialised_frames += int(retried and not relocalised)
@@ -270,7 +265,7 @@ class TrackedPose(PoseSource):
         self.recent_shares = (self.recent_shares + [float(info["inlier_share"])])[
             -self.tracker.fit_window :
         ]
-        return pose, True
+        return True
 
     def _solve(self, tensors, sdf_fn, init: np.ndarray, predicted: np.ndarray, terms):
         """One tracker solve from `init`, failed also when it fits clearly worse than the
@@ -285,24 +280,6 @@ class TrackedPose(PoseSource):
             )
             info["relative"] = info["skipped"] is not None
         return pose, info
-
-    def _relocalise(self, solve, points: dict[str, np.ndarray]) -> tuple[np.ndarray, dict] | None:
-        """The best fitting passing solve (highest inlier share) from the last pose turned
-        about each object axis through the frame's points (relocalise.py); None: none passed."""
-        last = self.history[-1]
-        world = np.concatenate([np.asarray(p).reshape(-1, 3) for p in points.values()])
-        world = world[np.isfinite(world).all(axis=1)]
-        if not len(world):
-            return None
-        centre = (invert_pose(last) @ np.append(world.mean(axis=0), 1.0))[:3]
-        best = None
-        for init in turned_starts(last, centre, self.tracker.relocalise_deg):
-            pose, info = solve(init)
-            if not info["skipped"] and (
-                best is None or info["inlier_share"] > best[1]["inlier_share"]
-            ):
-                best = (pose, info)
-        return best
 
     def _surface_points(self) -> np.ndarray:
         if self._error_points is None:
@@ -357,23 +334,8 @@ class TrackedPose(PoseSource):
         return out
 
     def write_pictures(self, out_dir, dpi: int) -> None:
-        if not self.curve:
-            return
-        from matplotlib.figure import Figure
-
-        curve = np.asarray(self.curve)
-        fig = Figure(figsize=(6.0, 3.2))
-        ax = fig.add_subplot()
-        ax.plot(curve[:, 1], curve[:, 2], color="tab:blue", lw=1.5)
-        ax.axhline(curve[:, 2].mean(), color="tab:gray", ls="--", lw=1)
-        ax.set_xlabel("time (s)")
-        ax.set_ylabel("average 3D pose error (mm)")
-        ax.set_title(f"mapping.pose={self.name}: mean {curve[:, 2].mean():.2f} mm")
-        ax.set_ylim(bottom=0)
-        ax.grid(alpha=0.3)
-        fig.tight_layout()
-        with atomic_write(Path(out_dir) / "pose_error.png", "wb") as f:
-            fig.savefig(f, dpi=dpi, format="png")
+        if self.curve:
+            write_pose_error_plot(self.curve, self.name, Path(out_dir) / "pose_error.png", dpi)
 
     # ---------------------------------------------------------------- resume
     def state(self) -> dict:

@@ -21,7 +21,7 @@ from torch import Tensor
 
 from neuralfeels_sem.core.geometry import check_pose, invert_pose
 from neuralfeels_sem.mapping.colour_keyframes import ColourConfig
-from neuralfeels_sem.mapping.fit_check import conditioning, fit_failure, inlier_share
+from neuralfeels_sem.mapping.fit_check import conditioning, divergence, fit_failure, inlier_share
 from neuralfeels_sem.mapping.residual_terms import (
     ROBUST_LOSSES,
     ResidualTerm,
@@ -29,18 +29,12 @@ from neuralfeels_sem.mapping.residual_terms import (
     stack_terms,
 )
 from neuralfeels_sem.mapping.se3 import constant_velocity, se3_exp, se3_log
+from neuralfeels_sem.mapping.track_points import gather_points
 
 log = logging.getLogger(__name__)
 
-__all__ = [
-    "PoseTracker",
-    "ResidualTerm",
-    "TrackerConfig",
-    "constant_velocity",
-    "robust_weights",
-    "se3_exp",
-    "se3_log",
-]
+__all__ = ["PoseTracker", "ResidualTerm", "TrackerConfig", "constant_velocity"]
+__all__ += ["robust_weights", "se3_exp", "se3_log"]  # re-exported for callers and tests
 
 REJECTIONS_BEFORE_STOP = 4  # trial steps that raise the cost before a solve ends
 
@@ -205,23 +199,10 @@ class PoseTracker:
 
     def _gather(self, points_world: Mapping[str, Tensor]) -> tuple[Tensor, Tensor]:
         """All usable points (N, 3) float64 and their per-point source weights (N,)."""
-        pts, weights = [], []
-        for source, p in points_world.items():
-            p = torch.as_tensor(p, dtype=torch.float64)
-            if p.ndim != 2 or p.shape[1] != 3:
-                raise ValueError(f"points of {source} must have shape (N, 3), got {tuple(p.shape)}")
-            w = self.source_weight(source)
-            p = p[torch.isfinite(p).all(dim=1)]
-            if w == 0 or len(p) == 0:
-                continue
-            cap = self.max_points_per_source if source == "camera" else self.max_points_per_finger
-            if len(p) > cap:
-                p = p[torch.randperm(len(p), generator=self.generator)[:cap]]
-            pts.append(p)
-            weights.append(torch.full((len(p),), w, dtype=torch.float64))
-        if not pts:
-            return torch.zeros((0, 3), dtype=torch.float64), torch.zeros(0, dtype=torch.float64)
-        return torch.cat(pts), torch.cat(weights)
+        caps = {"camera": self.max_points_per_source}
+        return gather_points(
+            points_world, self.source_weight, caps, self.max_points_per_finger, self.generator
+        )
 
     def _linearise(
         self,
@@ -386,7 +367,9 @@ class PoseTracker:
         info["final_rms_mm"] = _rms_mm(best.r[:n], sdf_weights)
         info["cost"] = best.cost
         result = invert_pose(best.obj_T_world)
-        reason = self._divergence(result, fallback) or self._misfit(best, n, weights, info)
+        reason = divergence(
+            result, fallback, self.max_motion_m, self.max_motion_rad
+        ) or self._misfit(best, n, weights, info)
         if reason:
             return self._reject(fallback, info, reason)
         return result, info
@@ -395,16 +378,6 @@ class PoseTracker:
         info["skipped"] = reason
         log.debug("pose tracking solve failed: %s", reason)
         return fallback, info
-
-    def _divergence(self, result: np.ndarray, fallback: np.ndarray) -> str | None:
-        """Why `result` counts as a diverged solve (None: it stayed within the caps)."""
-        if not np.isfinite(result).all():
-            return "diverged (non-finite pose)"
-        moved = float(np.linalg.norm(result[:3, 3] - fallback[:3, 3]))
-        turned = float(np.linalg.norm(se3_log(invert_pose(fallback) @ result)[3:]))
-        if moved > self.max_motion_m or turned > self.max_motion_rad:
-            return f"diverged ({moved:.3g} m, {turned:.3g} rad from the prediction)"
-        return None
 
     def _misfit(self, best: _Linearisation, n: int, weights: Tensor, info: dict) -> str | None:
         """Why the solution does not fit the frame (fit_check.py; None: it does): the

@@ -10,10 +10,14 @@ solve that fits its frame best (pose_source.py).
 
 from __future__ import annotations
 
+from collections.abc import Callable, Mapping
+
 import numpy as np
 
-from neuralfeels_sem.core.geometry import check_pose
+from neuralfeels_sem.core.geometry import check_pose, invert_pose
 from neuralfeels_sem.mapping.se3 import se3_exp
+
+Solve = Callable[[np.ndarray], tuple[np.ndarray, dict]]  # start pose -> (pose, tracker info)
 
 
 def turned_starts(
@@ -34,3 +38,21 @@ def turned_starts(
             turn[:3, 3] = centre - turn[:3, :3] @ centre  # about the centre, not the origin
             starts.append(world_T_object @ turn)
     return starts
+
+
+def relocalise(
+    solve: Solve, last: np.ndarray, points: Mapping[str, np.ndarray], degrees: float
+) -> tuple[np.ndarray, dict] | None:
+    """The passing solve with the highest inlier share from `last` turned about each object
+    axis through the centroid of the frame's world points; None when none passes."""
+    world = np.concatenate([np.asarray(p).reshape(-1, 3) for p in points.values()])
+    world = world[np.isfinite(world).all(axis=1)]
+    if not len(world):
+        return None
+    centre = (invert_pose(last) @ np.append(world.mean(axis=0), 1.0))[:3]
+    best = None
+    for init in turned_starts(last, centre, degrees):
+        pose, info = solve(init)
+        if not info["skipped"] and (best is None or info["inlier_share"] > best[1]["inlier_share"]):
+            best = (pose, info)
+    return best

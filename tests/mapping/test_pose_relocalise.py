@@ -12,7 +12,8 @@ import pytest
 from neuralfeels_sem.core.frame import Frame
 from neuralfeels_sem.core.geometry import transform_points
 from neuralfeels_sem.mapping.fit_check import relative_failure
-from neuralfeels_sem.mapping.pose_source import TrackedPose, average_3d_error
+from neuralfeels_sem.mapping.pose_error import average_3d_error
+from neuralfeels_sem.mapping.pose_source import TrackedPose
 from neuralfeels_sem.mapping.pose_tracker import PoseTracker, TrackerConfig
 from neuralfeels_sem.mapping.relocalise import turned_starts
 from neuralfeels_sem.mapping.se3 import se3_log
