@@ -70,8 +70,20 @@ def show(value: Any) -> str:
     return str(value).lower() if isinstance(value, bool) else str(value)
 
 
-def compared(key: str) -> bool:
-    return key not in IGNORED_KEYS and not key.startswith(IGNORED_PREFIXES)
+# Settings read only in some modes: {prefix: (the key that picks the mode, its value in
+# which they are unread)}. A run that read the simulator's pose never ran the tracker.
+UNREAD_IN: dict[str, tuple[str, str]] = {"mapping.tracker.": ("mapping.pose", "gt")}
+
+
+def compared(key: str, flat: dict[str, Any] | None = None) -> bool:
+    """Whether a recorded leaf can make the run another setting (`flat`: the run's other
+    leaves, for settings its mode never read)."""
+    if key in IGNORED_KEYS or key.startswith(IGNORED_PREFIXES):
+        return False
+    for prefix, (mode_key, unread) in UNREAD_IN.items():
+        if key.startswith(prefix) and flat is not None and str(flat.get(mode_key)) == unread:
+            return False
+    return True
 
 
 # Settings added since with a default that changes what a run does: {key: (a key every run
@@ -96,7 +108,7 @@ def drift(recorded: dict, overrides: dict[str, str], today: dict[str, Any]) -> d
             flat.setdefault(key, value)
     for key, value in flat.items():
         now = today.get(key, _MISSING)
-        if key in overrides or now is _MISSING or not compared(key):
+        if key in overrides or now is _MISSING or not compared(key, flat):
             continue
         if not same_value(value, now):
             out[key] = (value, now)

@@ -23,6 +23,7 @@ from neuralfeels_sem.eval.results_tables import (
 )
 
 POSE_KEY = "mapping.pose"
+TRACKER = "mapping.tracker."  # settings a `pose=gt` run never reads
 
 
 def is_tracked(run: Run) -> bool:
@@ -41,13 +42,13 @@ def pose_runs(source: Source) -> tuple[list[Run], list[Run]]:
 def partner_of(run: Run, partners: Sequence[Run], candidates: Sequence[Run]) -> Run | None:
     """The `pose=gt` run to compare with: the source's run with the same other settings,
     object and seed, else the run of the same object, seed and other settings among the
-    page's runs (its `mapping.pose` at today's default)."""
-    rest = {k: v for k, v in run.setting.items() if k != POSE_KEY}
+    page's runs (its `mapping.pose` at today's default); tracker settings do not count."""
+    rest = {k: v for k, v in run.setting.items() if k != POSE_KEY and not k.startswith(TRACKER)}
     for other in partners:
         same = {k: v for k, v in other.setting.items() if k != POSE_KEY} == rest
         if same and other.object == run.object and other.seed == run.seed:
             return other
-    return reference_run(run, candidates, dropped=("object_pose",), varied=POSE_KEY)
+    return reference_run(run, candidates, dropped=("object_pose",), varied=POSE_KEY, unread=TRACKER)
 
 
 def load_of(run: Run) -> float | None:

@@ -202,18 +202,25 @@ def describe_oracles(names: Sequence[str]) -> str:
 
 
 def reference_run(
-    run: Run, candidates: Sequence[Run], dropped: Sequence[str] = (), varied: str = ""
+    run: Run,
+    candidates: Sequence[Run],
+    dropped: Sequence[str] = (),
+    varied: str = "",
+    unread: str = "",
 ) -> Run | None:
     """The run of the same object, seed and settings that `run` is compared with, but for
     the setting `varied` (the pose source, the touch policy) left at today's default.
 
     Its oracles must be those of `run` plus, at most, the ones named in `dropped` (a
     tracked run drops `object_pose`, which its `pose=gt` reference uses); None when no
-    such run is among the candidates.
+    such run is among the candidates. Settings under the prefix `unread` are left out of
+    the comparison (the reference never reads them: a `pose=gt` run, the tracker's).
     """
     names, _ = oracles_of(run)
     own = set(names or ()) - set(dropped)
     rest = {k: v for k, v in run.setting.items() if k != varied}
+    if unread:
+        rest = {k: v for k, v in rest.items() if not k.startswith(unread)}
     for other in candidates:
         if other.setting != rest or other.object != run.object or other.seed != run.seed:
             continue

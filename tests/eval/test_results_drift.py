@@ -125,3 +125,13 @@ def test_the_per_finger_cap_reads_as_the_camera_cap_runs_before_it_had() -> None
         "mapping.tracker.max_points_per_finger": (1000, 200),
         "mapping.tracker.source_weights.tactile": (0.1, 0.5),
     }
+
+
+def test_tracker_settings_do_not_make_a_pose_gt_run_another_setting() -> None:
+    """A run that read the simulator's pose never ran the tracker: today's tracker
+    defaults cannot make it differ; a tracked run's can."""
+    today = {"mapping.pose": "gt", "mapping.tracker.source_weights.tactile": 0.5}
+    weights = {"tracker": {"source_weights": {"tactile": 0.0}}}
+    assert drift({"mapping": {"pose": "gt", **weights}}, {}, today) == {}
+    tracked = drift({"mapping": {"pose": "track", **weights}}, {"mapping.pose": "track"}, today)
+    assert tracked == {"mapping.tracker.source_weights.tactile": (0.0, 0.5)}

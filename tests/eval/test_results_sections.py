@@ -326,3 +326,19 @@ def test_uncertainty_rows_per_source_and_object(tmp_path: Path, default_sweep: P
         "0.050 ± 0.000",
         "0.10 ± 0.00 / 0.40 ± 0.00",
     ]
+
+
+def test_a_tracker_setting_keeps_the_pose_gt_reference(tmp_path: Path, default_sweep: Path) -> None:
+    """A `pose=gt` run never reads the tracker's settings: a tracked run with its own
+    still compares with the default run of the object and seed."""
+    sweep = tmp_path / "multirun" / "camera_only"
+    overrides = [
+        "object=patched_toy",
+        "seed=0",
+        "mapping.pose=track",
+        "mapping.tracker.source_weights.tactile=0",
+    ]
+    write_job(sweep, "0", overrides, tracked_metrics(90.0, 1.0, 2.0, 4.0))
+    pose = section(generate(tmp_path, default_sweep, sweep), "Pose tracking")
+    row = next(r for r in table_rows(pose) if r[1] == "0")
+    assert row[7] == "96.0"  # the default sweep's pose=gt run of patched_toy, seed 0
