@@ -70,6 +70,11 @@ def error_cell(runs: Sequence[Run]) -> str:
     return " / ".join(fmt(mean(values_of(runs, key)), 2) for key in keys)
 
 
+def closest_cell(runs: Sequence[Run]) -> str:
+    keys = ("pose_error_closest_mm", "pose_error_closest_final_mm")
+    return " / ".join(fmt(mean(values_of(runs, key)), 2) for key in keys)
+
+
 def untracked_cell(runs: Sequence[Run]) -> str:
     keys = ("pose_frames_not_tracked", "pose_frames_reinitialised", "pose_frames_relocalised")
     return " / ".join(
@@ -85,6 +90,7 @@ def pose_row(label: str, seed: str, runs: Sequence[Run], references: Sequence[Ru
         label,
         seed,
         error_cell(runs),
+        closest_cell(runs),
         untracked_cell(runs),
         time_with_load(seconds, mean(loads) if loads else None),
         fmt(mean(values_of(runs, "matching_mean_class_pct"))),
@@ -99,6 +105,7 @@ HEADER = [
     "setting",
     "seed",
     "pose error mean / max / final mm",
+    "closest-point error mean / final mm",
     "frames not tracked / retried / re-localised",
     "tracking s/frame (1-min load)",
     "mean-class %",
@@ -140,7 +147,10 @@ INTRO = [
     "learned; `track_known_shape`: against the true mesh) instead of reading the simulator's",
     "(see [pose](pose.md)). Pose error: the mean distance between ground-truth surface",
     "samples placed by the tracked and by the true pose, averaged over frames, its maximum",
-    "and its last value. A `pose=gt` column is the run of the same object, seed and other",
+    "and its last value. The closest-point error measures each sample's distance to the",
+    "nearest true surface sample instead: blind to motions a symmetric shape does not show",
+    "(a body of revolution spinning about its axis), which the pose error counts.",
+    "A `pose=gt` column is the run of the same object, seed and other",
     "settings with `mapping.pose=gt` in the same source, else the run of the object, seed and",
     "other settings among the sources of this page (n/a where there is none); the `pose=gt`",
     "runs of a source go with its tracked runs here. Tracking time per frame",

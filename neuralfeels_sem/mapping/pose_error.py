@@ -1,10 +1,12 @@
-"""The pose error of a tracked run: the average 3D error per frame and its plot."""
+"""The pose error of a tracked run: the average 3D error per frame (and its closest-point
+form, for symmetric shapes) and its plot."""
 
 from __future__ import annotations
 
 from pathlib import Path
 
 import numpy as np
+from scipy.spatial import cKDTree
 
 from neuralfeels_sem.core.geometry import check_pose
 from neuralfeels_sem.utils.atomic import atomic_write
@@ -18,6 +20,19 @@ def average_3d_error(
     check_pose(world_T_gt, "world_T_gt")
     diff = world_T_est - world_T_gt
     return float(np.linalg.norm(surface_points @ diff[:3, :3].T + diff[:3, 3], axis=1).mean())
+
+
+def closest_point_error(
+    world_T_est: np.ndarray, world_T_gt: np.ndarray, surface_points: np.ndarray
+) -> float:
+    """Mean distance (metres) from each surface point placed by the estimate to the nearest
+    surface point placed by the truth: blind to motions a symmetric shape does not show
+    (the spin of a body of revolution about its axis), which average_3d_error counts."""
+    check_pose(world_T_est, "world_T_est")
+    check_pose(world_T_gt, "world_T_gt")
+    placed = surface_points @ world_T_est[:3, :3].T + world_T_est[:3, 3]
+    truth = surface_points @ world_T_gt[:3, :3].T + world_T_gt[:3, 3]
+    return float(cKDTree(truth).query(placed)[0].mean())
 
 
 def write_pose_error_plot(curve: list[list[float]], mode: str, path: Path, dpi: int) -> None:
@@ -37,3 +52,47 @@ def write_pose_error_plot(curve: list[list[float]], mode: str, path: Path, dpi: 
     fig.tight_layout()
     with atomic_write(path, "wb") as f:
         fig.savefig(f, dpi=dpi, format="png")
+
+
+class PoseErrorLog:
+    """A tracked run's pose error against the ground truth, frame by frame.
+
+    `points` (once asked for) are surface samples of the true object; each frame records
+    the average 3D error and its closest-point form (both mm).
+    """
+
+    def __init__(self, sample_points) -> None:
+        self._sample_points = sample_points  # () -> (N, 3) object-frame surface points
+        self._points: np.ndarray | None = None
+        self.curve: list[list[float]] = []  # [frame_index, time_s, error_mm]
+        self.closest_mm: list[float] = []  # closest-point error of each row of `curve`
+
+    def add(self, index: int, time_s: float, est: np.ndarray, gt: np.ndarray) -> None:
+        if self._points is None:
+            self._points = self._sample_points()
+        self.curve.append(
+            [int(index), float(time_s), 1e3 * average_3d_error(est, gt, self._points)]
+        )
+        self.closest_mm.append(1e3 * closest_point_error(est, gt, self._points))
+
+    def metrics(self) -> dict:
+        if not self.curve:
+            return {}
+        errors = np.array([row[2] for row in self.curve])
+        out = {
+            "pose_error_mm": float(errors.mean()),
+            "pose_error_max_mm": float(errors.max()),
+            "pose_error_final_mm": float(errors[-1]),
+            "pose_error_curve": [list(row) for row in self.curve],
+        }
+        if len(self.closest_mm) == len(self.curve):  # a run resumed from before it had none
+            out["pose_error_closest_mm"] = float(np.mean(self.closest_mm))
+            out["pose_error_closest_final_mm"] = float(self.closest_mm[-1])
+        return out
+
+    def state(self) -> dict:
+        return {"curve": [list(row) for row in self.curve], "closest_mm": list(self.closest_mm)}
+
+    def load_state(self, state: dict) -> None:
+        self.curve = [list(row) for row in state.get("curve", [])]
+        self.closest_mm = [float(v) for v in state.get("closest_mm", [])]

@@ -24,7 +24,7 @@ from neuralfeels_sem.core.frame import Frame
 from neuralfeels_sem.core.geometry import invert_pose, orthonormalize_pose
 from neuralfeels_sem.mapping.colour_keyframes import ColourKeyframes
 from neuralfeels_sem.mapping.fit_check import relative_failure
-from neuralfeels_sem.mapping.pose_error import average_3d_error, write_pose_error_plot
+from neuralfeels_sem.mapping.pose_error import PoseErrorLog, write_pose_error_plot
 from neuralfeels_sem.mapping.pose_tracker import PoseTracker, TrackerConfig
 from neuralfeels_sem.mapping.relocalise import relocalise
 from neuralfeels_sem.mapping.se3 import constant_velocity
@@ -135,9 +135,8 @@ class TrackedPose(PoseSource):
         self.known_shape_resolution = known_shape_resolution
         self.seed = seed
         self._known_sdf = None
-        self._error_points: np.ndarray | None = None
         self.history: list[np.ndarray] = []  # the last two estimates (motion prior)
-        self.curve: list[list[float]] = []  # [frame_index, time_s, error_mm]
+        self.errors = PoseErrorLog(self._surface_points)
         self.kept: dict[str, int] = {}  # why the prediction was kept, and how often
         self.fit_curve: list[list[float]] = []  # [frame, inlier share, conditioning] of solves
         self.tracked_frames = 0
@@ -187,8 +186,7 @@ class TrackedPose(PoseSource):
         self.last_estimate = pose
         self.last_frame = frame
         if frame.gt_world_T_object is not None:
-            err = average_3d_error(pose, frame.gt_world_T_object, self._surface_points())
-            self.curve.append([int(frame.index), float(frame.time_s), 1e3 * err])
+            self.errors.add(frame.index, frame.time_s, pose, frame.gt_world_T_object)
         return pose
 
     def _world_points(self, frame: Frame, mapper: MapView) -> dict[str, np.ndarray]:
@@ -282,11 +280,9 @@ class TrackedPose(PoseSource):
         return pose, info
 
     def _surface_points(self) -> np.ndarray:
-        if self._error_points is None:
-            if self.obj is None:
-                raise ValueError("the pose error needs the object's mesh (pass obj)")
-            self._error_points = self.obj.sample_surface(self.error_samples, seed=self.seed)[0]
-        return self._error_points
+        if self.obj is None:
+            raise ValueError("the pose error needs the object's mesh (pass obj)")
+        return self.obj.sample_surface(self.error_samples, seed=self.seed)[0]
 
     # ---------------------------------------------------------------- outputs
     @property
@@ -323,25 +319,19 @@ class TrackedPose(PoseSource):
             "pose_track_s_per_frame": self.track_seconds / max(attempts, 1),
             "pose_fit_curve": [list(row) for row in self.fit_curve],
         }
-        if self.curve:
-            errors = np.array([row[2] for row in self.curve])
-            out.update(
-                pose_error_mm=float(errors.mean()),
-                pose_error_max_mm=float(errors.max()),
-                pose_error_final_mm=float(errors[-1]),
-                pose_error_curve=[list(row) for row in self.curve],
-            )
+        out.update(self.errors.metrics())
         return out
 
     def write_pictures(self, out_dir, dpi: int) -> None:
-        if self.curve:
-            write_pose_error_plot(self.curve, self.name, Path(out_dir) / "pose_error.png", dpi)
+        if self.errors.curve:
+            path = Path(out_dir) / "pose_error.png"
+            write_pose_error_plot(self.errors.curve, self.name, path, dpi)
 
     # ---------------------------------------------------------------- resume
     def state(self) -> dict:
         return {
             "history": [p.tolist() for p in self.history],
-            "curve": [list(row) for row in self.curve],
+            **self.errors.state(),
             "kept": dict(self.kept),
             "fit_curve": [list(row) for row in self.fit_curve],
             "tracked_frames": self.tracked_frames,
@@ -359,7 +349,7 @@ class TrackedPose(PoseSource):
 
     def load_state(self, state: dict) -> None:
         self.history = [np.asarray(p, dtype=np.float64) for p in state.get("history", [])]
-        self.curve = [list(row) for row in state.get("curve", [])]
+        self.errors.load_state(state)
         self.kept = {str(k): int(v) for k, v in state.get("kept", {}).items()}
         self.fit_curve = [list(row) for row in state.get("fit_curve", [])]
         self.tracked_frames = int(state.get("tracked_frames", 0))

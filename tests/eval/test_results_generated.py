@@ -98,4 +98,4 @@ def test_tracked_runs_on_generated_objects_go_to_the_pose_section(tmp_path: Path
     assert "Pooled on" not in part and "mapping.pose" not in part  # one setting only
     pose = section(page, "Pose tracking")
     row = cells(pose, "object=random, object.seed=2")
-    assert row[2] == "2.00 / 2.00 / 1.50" and row[5] == "76.0" and row[7] == "60.0"
+    assert row[2] == "2.00 / 2.00 / 1.50" and row[6] == "76.0" and row[8] == "60.0"

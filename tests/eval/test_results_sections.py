@@ -43,6 +43,8 @@ def tracked_metrics(value: float, error: float, seconds: float, load: float, **e
         pose_frames_not_tracked=1,
         pose_frames_reinitialised=2,
         pose_frames_relocalised=1,
+        pose_error_closest_mm=error / 2,
+        pose_error_closest_final_mm=error / 4,
         pose_track_s_per_frame=seconds,
         load_avg=[load, 1.0, 1.0],
         **extra,
@@ -72,6 +74,7 @@ def test_tracked_runs_get_the_pose_section_beside_the_pose_gt_runs(
     rows = {tuple(r[:2]): r[2:] for r in table_rows(pose)}
     assert rows[("object=patched_toy", "0")] == [
         "1.00 / 2.00 / 1.50",
+        "0.50 / 0.25",
         "1 / 2 / 1",
         "2.00 (4)",
         "90.0",
@@ -81,9 +84,9 @@ def test_tracked_runs_get_the_pose_section_beside_the_pose_gt_runs(
         "0.980",
     ]
     mean_row = rows[("object=patched_toy", "**mean**")]
-    assert mean_row[:4] == ["2.00 / 4.00 / 2.50", "2 / 4 / 2", "1.50 (3)", "85.0"]
-    assert mean_row[5:] == ["94.0", "0.900", "0.985"]
-    assert rows[("object=patchwork", "0")][5] == "n/a"
+    assert mean_row[:5] == ["2.00 / 4.00 / 2.50", "1.00 / 0.50", "2 / 4 / 2", "1.50 (3)", "85.0"]
+    assert mean_row[6:] == ["94.0", "0.900", "0.985"]
+    assert rows[("object=patchwork", "0")][6] == "n/a"
     # Tracked runs are reported here only: not as another setting, not in the object tables.
     assert "mapping.pose=track" not in section(page, "Other settings")
     assert [r[0] for r in table_rows(section(page, "Multi-material objects"))] == ["`patched_toy`"]
@@ -104,7 +107,7 @@ def test_a_pose_ablation_compares_within_its_own_sweep(tmp_path: Path, default_s
     assert "Every run here: `mapping.pose=track`, `sensor.duration_s=3`." in pose
     # The partner is the sweep's own pose=gt run (88.0), not the default run of seed 0 (96.0).
     row = cells(pose, "object=patched_toy")
-    assert row[1] == "0" and row[7:] == ["88.0", "0.900", "0.950"]
+    assert row[1] == "0" and row[8:] == ["88.0", "0.900", "0.950"]
     assert "No runs with other settings." in page
 
 
@@ -341,4 +344,4 @@ def test_a_tracker_setting_keeps_the_pose_gt_reference(tmp_path: Path, default_s
     write_job(sweep, "0", overrides, tracked_metrics(90.0, 1.0, 2.0, 4.0))
     pose = section(generate(tmp_path, default_sweep, sweep), "Pose tracking")
     row = next(r for r in table_rows(pose) if r[1] == "0")
-    assert row[7] == "96.0"  # the default sweep's pose=gt run of patched_toy, seed 0
+    assert row[8] == "96.0"  # the default sweep's pose=gt run of patched_toy, seed 0

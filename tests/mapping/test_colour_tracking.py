@@ -12,6 +12,7 @@ import torch
 from neuralfeels_sem.core.geometry import invert_pose
 from neuralfeels_sem.mapping.colour_keyframes import ColourConfig, ColourKeyframes, turned_deg
 from neuralfeels_sem.mapping.colour_views import colour_features, pixels_of
+from neuralfeels_sem.mapping.pose_error import PoseErrorLog
 from neuralfeels_sem.mapping.pose_source import TrackedPose
 from neuralfeels_sem.mapping.pose_tracker import PoseTracker, TrackerConfig, se3_exp
 from neuralfeels_sem.mapping.residual_terms import ResidualTerm, stack_terms
@@ -29,7 +30,7 @@ from tests.mapping.colour_scene import (
 def sphere_source(**colour) -> TrackedPose:
     config = TrackerConfig(rotation_scale=RADIUS, colour=ColourConfig(**colour))
     source = TrackedPose("track", None, PoseTracker(config))
-    source._error_points = surface_samples()  # no mesh: the sphere's surface
+    source.errors = PoseErrorLog(surface_samples)  # no mesh: the sphere's surface
     return source
 
 

@@ -12,12 +12,8 @@ import trimesh
 from neuralfeels_sem.core.errors import ConfigError
 from neuralfeels_sem.core.frame import Frame
 from neuralfeels_sem.core.geometry import transform_points
-from neuralfeels_sem.mapping.pose_source import (
-    PoseSource,
-    TrackedPose,
-    average_3d_error,
-    build_pose_source,
-)
+from neuralfeels_sem.mapping.pose_error import average_3d_error, closest_point_error
+from neuralfeels_sem.mapping.pose_source import PoseSource, TrackedPose, build_pose_source
 from neuralfeels_sem.mapping.pose_tracker import PoseTracker, TrackerConfig, se3_exp
 from neuralfeels_sem.objects.material_object import MaterialObject
 
@@ -98,6 +94,20 @@ def test_average_3d_error() -> None:
     b[:3, 3] = (0.003, 0.0, 0.004)
     assert average_3d_error(a, b, pts) == pytest.approx(0.005)
     assert average_3d_error(a, a, pts) == 0.0
+
+
+def test_closest_point_error_is_blind_to_a_symmetric_spin() -> None:
+    """A cylinder's spin about its axis moves its points along its surface: the average 3D
+    error counts it, the closest-point error does not; a shift both count."""
+    ring = np.random.default_rng(0).uniform(0, 2 * np.pi, 4000)
+    height = np.random.default_rng(1).uniform(-0.05, 0.05, 4000)
+    pts = np.stack([0.02 * np.cos(ring), height, 0.02 * np.sin(ring)], axis=1)
+    spun = se3_exp(np.array([0, 0, 0, 0, np.deg2rad(60.0), 0]))
+    assert average_3d_error(spun, np.eye(4), pts) > 0.015
+    assert closest_point_error(spun, np.eye(4), pts) < 1.5e-3  # the samples' spacing
+    shifted = np.eye(4)
+    shifted[:3, 3] = (0.004, 0.0, 0.0)
+    assert closest_point_error(shifted, np.eye(4), pts) > 2e-3
 
 
 def known_shape_source(obj: MaterialObject) -> TrackedPose:
