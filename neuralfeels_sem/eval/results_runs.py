@@ -3,6 +3,7 @@
 from __future__ import annotations
 
 import json
+import re
 from collections.abc import Sequence
 from dataclasses import dataclass, field
 from functools import cached_property
@@ -22,6 +23,7 @@ from neuralfeels_sem.eval.results_drift import current_overrides, drift, redunda
 # sit side by side there. `viz.plots` only decides whether pictures are drawn.
 BOOKKEEPING_KEYS = ("seed", "experiment", "launcher", "perception", "viz.plots")
 BOOKKEEPING_VALUES = {"task": "map", "sensor": "sim"}
+GENERATED_NAME = re.compile(r"random_\d+")  # the name a generated object's metrics give it
 SINGLE_MATERIAL_FLOOR = 100.0 - 1e-6  # majority map's mean-class % on a one-material object
 
 
@@ -40,6 +42,15 @@ class Run:
         name = self.overrides.get("object") or get(self.metrics, "config.object")
         if name is None and self.config:
             name = get(self.config, "object.name")
+        if (
+            name is not None
+            and GENERATED_NAME.fullmatch(str(name))
+            and "object.seed" in self.overrides
+        ):
+            # a generated object picked by a preset (experiment=unseen_objects): its metrics
+            # name it by its seed, which the setting already carries; `object=random` as
+            # an override names it "random"
+            return "random"
         return str(name) if name is not None else "unknown"
 
     @property

@@ -99,3 +99,21 @@ def test_tracked_runs_on_generated_objects_go_to_the_pose_section(tmp_path: Path
     pose = section(page, "Pose tracking")
     row = cells(pose, "object=random, object.seed=2")
     assert row[2] == "2.00 / 2.00 / 1.50" and row[6] == "76.0" and row[8] == "60.0"
+
+
+def test_a_preset_picked_generated_object_is_the_same_object(tmp_path: Path) -> None:
+    """A sweep that picked object=random through a preset names its runs by the metrics'
+    `random_<seed>`; a tracked run with `object=random` finds it as its pose=gt partner."""
+    reference, tracked = tmp_path / "multirun" / "eval", tmp_path / "multirun" / "eval_track"
+    write_job(
+        reference,
+        "0",
+        ["object.seed=1000", "seed=0", "experiment=unseen_objects"],
+        generated_metrics(1000, 90.0, 0.8),
+    )
+    metrics = generated_metrics(1000, 80.0, 0.8)
+    metrics.update(oracles=[], pose_error_mm=1.0, pose_error_max_mm=2.0, pose_error_final_mm=1.5)
+    overrides = ["object=random", "object.seed=1000", "seed=0", "mapping.pose=track"]
+    write_job(tracked, "0", overrides, metrics)
+    pose = section(generate(tmp_path, reference, tracked), "Pose tracking")
+    assert cells(pose, "object=random")[8] == "90.0"
