@@ -75,6 +75,13 @@ def show(value: Any) -> str:
 UNREAD_IN: dict[str, tuple[str, str]] = {"mapping.tracker.": ("mapping.pose", "gt")}
 
 
+def unread_beside(mode_key: str) -> tuple[str, ...]:
+    """Prefixes of the settings that UNREAD_IN ties to `mode_key`: a run compared with its
+    reference at that mode's unread value (a tracked run with its `pose=gt` run) differs
+    from it in them without being another setting."""
+    return tuple(prefix for prefix, (key, _) in UNREAD_IN.items() if key == mode_key)
+
+
 def compared(key: str, flat: dict[str, Any] | None = None) -> bool:
     """Whether a recorded leaf can make the run another setting (`flat`: the run's other
     leaves, for settings its mode never read)."""

@@ -11,6 +11,7 @@ from __future__ import annotations
 
 from collections.abc import Sequence
 
+from neuralfeels_sem.eval.results_drift import unread_beside
 from neuralfeels_sem.eval.results_runs import Run, Source, reference_run
 from neuralfeels_sem.eval.results_tables import (
     by_seed,
@@ -23,7 +24,6 @@ from neuralfeels_sem.eval.results_tables import (
 )
 
 POSE_KEY = "mapping.pose"
-TRACKER = "mapping.tracker."  # settings a `pose=gt` run never reads
 
 
 def is_tracked(run: Run) -> bool:
@@ -43,12 +43,13 @@ def partner_of(run: Run, partners: Sequence[Run], candidates: Sequence[Run]) -> 
     """The `pose=gt` run to compare with: the source's run with the same other settings,
     object and seed, else the run of the same object, seed and other settings among the
     page's runs (its `mapping.pose` at today's default); tracker settings do not count."""
-    rest = {k: v for k, v in run.setting.items() if k != POSE_KEY and not k.startswith(TRACKER)}
+    unread = unread_beside(POSE_KEY)
+    rest = {k: v for k, v in run.setting.items() if k != POSE_KEY and not k.startswith(unread)}
     for other in partners:
         same = {k: v for k, v in other.setting.items() if k != POSE_KEY} == rest
         if same and other.object == run.object and other.seed == run.seed:
             return other
-    return reference_run(run, candidates, dropped=("object_pose",), varied=POSE_KEY, unread=TRACKER)
+    return reference_run(run, candidates, dropped=("object_pose",), varied=POSE_KEY)
 
 
 def load_of(run: Run) -> float | None:

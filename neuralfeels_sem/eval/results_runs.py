@@ -15,7 +15,13 @@ import yaml
 from neuralfeels_sem.core.errors import DataError
 from neuralfeels_sem.eval.aggregate import read_job
 from neuralfeels_sem.eval.oracles import ORACLES, oracles_used
-from neuralfeels_sem.eval.results_drift import current_overrides, drift, redundant, show
+from neuralfeels_sem.eval.results_drift import (
+    current_overrides,
+    drift,
+    redundant,
+    show,
+    unread_beside,
+)
 
 # Overrides that do not change what a run measures.
 # `perception` (a preset of oracles) is not a setting here: the object tables have an
@@ -213,25 +219,20 @@ def describe_oracles(names: Sequence[str]) -> str:
 
 
 def reference_run(
-    run: Run,
-    candidates: Sequence[Run],
-    dropped: Sequence[str] = (),
-    varied: str = "",
-    unread: str = "",
+    run: Run, candidates: Sequence[Run], dropped: Sequence[str] = (), varied: str = ""
 ) -> Run | None:
     """The run of the same object, seed and settings that `run` is compared with, but for
     the setting `varied` (the pose source, the touch policy) left at today's default.
 
     Its oracles must be those of `run` plus, at most, the ones named in `dropped` (a
     tracked run drops `object_pose`, which its `pose=gt` reference uses); None when no
-    such run is among the candidates. Settings under the prefix `unread` are left out of
-    the comparison (the reference never reads them: a `pose=gt` run, the tracker's).
+    such run is among the candidates. Settings the reference never reads at its value of
+    `varied` (results_drift.UNREAD_IN: a `pose=gt` run, the tracker's) are left out.
     """
     names, _ = oracles_of(run)
     own = set(names or ()) - set(dropped)
-    rest = {k: v for k, v in run.setting.items() if k != varied}
-    if unread:
-        rest = {k: v for k, v in rest.items() if not k.startswith(unread)}
+    unread = unread_beside(varied)
+    rest = {k: v for k, v in run.setting.items() if k != varied and not k.startswith(unread)}
     for other in candidates:
         if other.setting != rest or other.object != run.object or other.seed != run.seed:
             continue

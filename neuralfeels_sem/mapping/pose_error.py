@@ -8,7 +8,7 @@ from pathlib import Path
 import numpy as np
 from scipy.spatial import cKDTree
 
-from neuralfeels_sem.core.geometry import check_pose
+from neuralfeels_sem.core.geometry import check_pose, invert_pose
 from neuralfeels_sem.utils.atomic import atomic_write
 
 
@@ -23,16 +23,23 @@ def average_3d_error(
 
 
 def closest_point_error(
-    world_T_est: np.ndarray, world_T_gt: np.ndarray, surface_points: np.ndarray
+    world_T_est: np.ndarray,
+    world_T_gt: np.ndarray,
+    surface_points: np.ndarray,
+    tree: cKDTree | None = None,
 ) -> float:
     """Mean distance (metres) from each surface point placed by the estimate to the nearest
     surface point placed by the truth: blind to motions a symmetric shape does not show
-    (the spin of a body of revolution about its axis), which average_3d_error counts."""
+    (the spin of a body of revolution about its axis), which average_3d_error counts.
+
+    Measured in the true object frame (distances do not change under a rigid motion), so
+    `tree`, a cKDTree of `surface_points` built once, serves every frame.
+    """
     check_pose(world_T_est, "world_T_est")
     check_pose(world_T_gt, "world_T_gt")
-    placed = surface_points @ world_T_est[:3, :3].T + world_T_est[:3, 3]
-    truth = surface_points @ world_T_gt[:3, :3].T + world_T_gt[:3, 3]
-    return float(cKDTree(truth).query(placed)[0].mean())
+    gt_T_est = invert_pose(world_T_gt) @ world_T_est
+    placed = surface_points @ gt_T_est[:3, :3].T + gt_T_est[:3, 3]
+    return float((tree or cKDTree(surface_points)).query(placed)[0].mean())
 
 
 def write_pose_error_plot(curve: list[list[float]], mode: str, path: Path, dpi: int) -> None:
@@ -57,23 +64,25 @@ def write_pose_error_plot(curve: list[list[float]], mode: str, path: Path, dpi: 
 class PoseErrorLog:
     """A tracked run's pose error against the ground truth, frame by frame.
 
-    `points` (once asked for) are surface samples of the true object; each frame records
-    the average 3D error and its closest-point form (both mm).
+    `sample_points()` (called on the first frame) gives surface samples of the true object;
+    each frame records the average 3D error and its closest-point form (both mm).
     """
 
     def __init__(self, sample_points) -> None:
         self._sample_points = sample_points  # () -> (N, 3) object-frame surface points
         self._points: np.ndarray | None = None
+        self._tree: cKDTree | None = None  # of _points, for the closest-point error
         self.curve: list[list[float]] = []  # [frame_index, time_s, error_mm]
         self.closest_mm: list[float] = []  # closest-point error of each row of `curve`
 
     def add(self, index: int, time_s: float, est: np.ndarray, gt: np.ndarray) -> None:
         if self._points is None:
             self._points = self._sample_points()
+            self._tree = cKDTree(self._points)
         self.curve.append(
             [int(index), float(time_s), 1e3 * average_3d_error(est, gt, self._points)]
         )
-        self.closest_mm.append(1e3 * closest_point_error(est, gt, self._points))
+        self.closest_mm.append(1e3 * closest_point_error(est, gt, self._points, self._tree))
 
     def metrics(self) -> dict:
         if not self.curve:

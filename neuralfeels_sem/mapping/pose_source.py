@@ -34,6 +34,7 @@ log = logging.getLogger(__name__)
 PoseMode = Literal["gt", "track", "track_known_shape"]  # mapping.pose
 POSE_SOURCES = get_args(PoseMode)
 TRACKED = ("track", "track_known_shape")
+WARM_UP = "no surface learned yet"  # frames of `track` kept (and mapped) before the field has one
 
 
 def resolve_pose_source(pose: str) -> str:
@@ -137,7 +138,7 @@ class TrackedPose(PoseSource):
         self._known_sdf = None
         self.history: list[np.ndarray] = []  # the last two estimates (motion prior)
         self.errors = PoseErrorLog(self._surface_points)
-        self.kept: dict[str, int] = {}  # why the prediction was kept, and how often
+        self.kept: dict[str, int] = {}  # why frames were not tracked, and how often
         self.fit_curve: list[list[float]] = []  # [frame, inlier share, conditioning] of solves
         self.tracked_frames = 0
         self.reinitialised_frames = 0  # tracked only after a restart from the last pose
@@ -145,7 +146,6 @@ class TrackedPose(PoseSource):
         self.degenerate_frames = 0  # tracked, some directions held by the motion prior
         self.recent_shares: list[float] = []  # inlier shares of the last tracked frames
         self.kept_in_a_row = 0  # frames not tracked since the last tracked one
-        self.not_fused = 0  # frames the mapper did not fuse: their pose was not tracked
         self.colourless_frames = 0  # solved with colour on but no earlier view to compare
         self.track_seconds = 0.0  # wall time spent tracking (SDF evaluations dominate)
         self.colour = ColourKeyframes(self.tracker.colour, seed)
@@ -171,13 +171,12 @@ class TrackedPose(PoseSource):
             pose, tracked = np.asarray(frame.world_T_object, dtype=np.float64).copy(), True
         elif self.name == "track" and not mapper.has_surface:
             pose = constant_velocity(self.history)
-            self._keep("no surface learned yet")
+            self._keep(WARM_UP)
         else:
             pose, tracked = self._track(frame, mapper, points)
             # Only a tracked pose writes to the map (the warm-up frames above build it): a
             # frame mapped with a pose that fits badly teaches the field to agree with it.
             self.fuse = tracked
-            self.not_fused += int(not tracked)
         pose = orthonormalize_pose(pose)
         if points is None and self.colour.enabled:
             self._world_points(frame, mapper)  # the first frame: its colour view
@@ -290,6 +289,11 @@ class TrackedPose(PoseSource):
         """Frames after the first that were not tracked, for any reason."""
         return sum(self.kept.values())
 
+    @property
+    def frames_not_mapped(self) -> int:
+        """Frames not tracked that the mapper did not fuse: all but the warm-up frames."""
+        return self.frames_not_tracked - self.kept.get(WARM_UP, 0)
+
     def notes(self) -> list[str]:
         """One line on the frames that were not tracked (none when every frame was)."""
         if not self.frames_not_tracked:
@@ -297,20 +301,18 @@ class TrackedPose(PoseSource):
         reasons = ", ".join(f"{n} {why}" for why, n in sorted(self.kept.items()))
         return [
             f"pose: {self.frames_not_tracked} frames not tracked ({reasons}), "
-            f"{self.not_fused} of them not mapped; {self.tracked_frames} tracked"
+            f"{self.frames_not_mapped} of them not mapped; {self.tracked_frames} tracked"
         ]
 
     def metrics(self) -> dict:
-        attempts = self.tracked_frames + sum(
-            n for why, n in self.kept.items() if why != "no surface learned yet"
-        )
+        attempts = self.tracked_frames + sum(n for why, n in self.kept.items() if why != WARM_UP)
         out: dict = {
             "pose_frames_tracked": self.tracked_frames,
             "pose_frames_kept": dict(self.kept),
             "pose_frames_not_tracked": self.frames_not_tracked,
             "pose_frames_reinitialised": self.reinitialised_frames,
             "pose_frames_relocalised": self.relocalised_frames,
-            "pose_frames_not_mapped": self.not_fused,
+            "pose_frames_not_mapped": self.frames_not_mapped,
             "pose_frames_degenerate": self.degenerate_frames,
             "pose_frames_without_colour": self.colourless_frames,
             "pose_colour_keyframes": len(self.colour.keyframes),
@@ -339,7 +341,6 @@ class TrackedPose(PoseSource):
             "relocalised_frames": self.relocalised_frames,
             "recent_shares": list(self.recent_shares),
             "kept_in_a_row": self.kept_in_a_row,
-            "not_fused": self.not_fused,
             "degenerate_frames": self.degenerate_frames,
             "colourless_frames": self.colourless_frames,
             "track_seconds": self.track_seconds,
@@ -357,7 +358,6 @@ class TrackedPose(PoseSource):
         self.relocalised_frames = int(state.get("relocalised_frames", 0))
         self.recent_shares = [float(v) for v in state.get("recent_shares", [])]
         self.kept_in_a_row = int(state.get("kept_in_a_row", 0))
-        self.not_fused = int(state.get("not_fused", 0))
         self.degenerate_frames = int(state.get("degenerate_frames", 0))
         self.colourless_frames = int(state.get("colourless_frames", 0))
         self.track_seconds = float(state.get("track_seconds", 0.0))

@@ -324,7 +324,7 @@ class MappingSession:
         if self.pose_source.fuse:
             self.mapper.add_frame(frame, labels, world_T_object=world_T_object, steps=steps)
         else:  # its pose was not tracked: the field learns on, but not from this frame
-            self.mapper.optimize(steps or self.mapper.config.steps_per_frame)
+            self.mapper.optimize(self.mapper.config.steps_per_frame if steps is None else steps)
         self.segment.add_frame(frame.index, frame.time_s)
         self.last_index = frame.index
         for observer in self.observers:
