@@ -25,6 +25,15 @@ def test_batch_bound_is_min_of_ray_distance_and_nearest_surface_point() -> None:
     torch.testing.assert_close(batch_bound(x, s, surface, chunk=1), batch_bound(x, s, surface))
 
 
+def test_batch_bound_matches_brute_force_on_a_ray_batch() -> None:
+    g = torch.Generator().manual_seed(0)
+    surface = torch.rand(384, 3, generator=g) * 0.1
+    x = surface.repeat_interleave(9, 0) + torch.randn(3456, 3, generator=g) * 0.005
+    s = torch.full((len(x),), 1.0)  # the ray distance never binds: the nearest point decides
+    brute = torch.cdist(x.double(), surface.double()).min(dim=1).values.float()
+    torch.testing.assert_close(batch_bound(x, s, surface), brute, rtol=0, atol=1e-7)
+
+
 def test_truncated_sdf_loss_signs_the_bound_by_side() -> None:
     sdf = torch.tensor([0.002, 0.002, 0.0, -0.001])
     s = torch.tensor([0.003, -0.003, 0.0, -0.001])

@@ -21,7 +21,8 @@ def predict_probs(
     batch_size: int = 64,
 ) -> np.ndarray:
     """(N, S, S, 3) uint8, already at the model's input size -> (N, C) float32 probabilities."""
-    model.eval()
+    if model.training:  # eval() walks every submodule: skip it for a model already in eval mode
+        model.eval()
     out = []
     for start in range(0, len(images), batch_size):
         x = normalize(to_tensor(images[start : start + batch_size]).to(device), mean, std)
