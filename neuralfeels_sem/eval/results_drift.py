@@ -18,10 +18,11 @@ import yaml
 from neuralfeels_sem.utils.nested import flatten
 
 # Keys never compared: the object group is what the run is about (a generated object's
-# seed, a custom mesh), hydra's own settings are bookkeeping, and these top-level keys
-# only name the run or decide whether pictures are drawn.
+# seed, a custom mesh), hydra's own settings are bookkeeping, and these keys only name
+# the run, decide whether pictures are drawn, or when the state is saved (a checkpoint
+# changes nothing the run maps: a resumed run continues bit for bit).
 IGNORED_PREFIXES = ("object.", "hydra.")
-IGNORED_KEYS = frozenset({"seed", "viz.plots"})
+IGNORED_KEYS = frozenset({"seed", "viz.plots", "mapping.checkpoint_every"})
 _MISSING = object()
 
 # Config-group options removed since, with the option that composes the same config today
