@@ -1,0 +1,30 @@
+"""The default run's realtime factor in `make bench`: the median of repeated runs."""
+
+from __future__ import annotations
+
+import pytest
+
+from neuralfeels_sem.bench import bench_mapper
+
+
+def _fake_runs(monkeypatch: pytest.MonkeyPatch, results: list[dict]) -> None:
+    queue = list(results)
+    monkeypatch.setattr(bench_mapper, "_default_run", lambda *overrides: queue.pop(0))
+
+
+def test_the_median_run_is_reported_with_every_factor(monkeypatch: pytest.MonkeyPatch) -> None:
+    runs = [
+        {"realtime_factor": 0.46, "loop_wall_s": 43.5, "matching_mean_class_pct": 95.4},
+        {"realtime_factor": 0.54, "loop_wall_s": 37.1, "matching_mean_class_pct": 95.4},
+        {"realtime_factor": 0.51, "loop_wall_s": 39.2, "matching_mean_class_pct": 95.4},
+    ]
+    _fake_runs(monkeypatch, runs)
+    out = bench_mapper._repeated_default_run(3)
+    assert out["realtime_factor"] == 0.51 and out["loop_wall_s"] == 39.2
+    assert out["realtime_factor_runs"] == [0.46, 0.54, 0.51]
+    assert (out["realtime_factor_min"], out["realtime_factor_max"]) == (0.46, 0.54)
+
+
+def test_a_failed_repeat_is_reported_instead_of_a_median(monkeypatch: pytest.MonkeyPatch) -> None:
+    _fake_runs(monkeypatch, [{"realtime_factor": 0.5}, {"error": "exit 2: bad config"}])
+    assert bench_mapper._repeated_default_run(2) == {"error": "exit 2: bad config"}
