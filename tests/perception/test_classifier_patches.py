@@ -151,3 +151,25 @@ def test_probing_the_far_ends_first_skips_the_rest_only_of_a_touch_of_one_materi
         assert (3 in full.pixel_labels) != whole
     with pytest.raises(ValueError, match="patch_probe"):
         EfficientNetClassifierConfig(patch_probe=-1)
+
+
+def test_pixel_labels_take_the_first_of_equally_near_centres_as_argmin_would() -> None:
+    rng = np.random.default_rng(0)
+    shape = (40, 30)
+    for trial in range(50):
+        k = int(rng.integers(1, 9))
+        centres = np.round(rng.uniform(0, 40, (k, 2)))  # whole pixels: ties happen
+        if k > 1 and trial % 2:
+            centres[1] = centres[0]
+        labels = rng.integers(NO_LABEL, 4, k)
+        labels[0] = max(labels[0], 0)
+        confidence = rng.uniform(0.5, 1.0, k).astype(np.float32)
+        out, conf = pixel_labels(shape, centres, labels, confidence, 12.0)
+        kept = labels != NO_LABEL
+        rows, cols = np.mgrid[0 : shape[0], 0 : shape[1]]
+        d2 = (rows[..., None] - centres[kept, 0]) ** 2 + (cols[..., None] - centres[kept, 1]) ** 2
+        nearest = d2.argmin(axis=-1)
+        near = d2.min(axis=-1) <= 12.0**2
+        assert (out[near] == labels[kept][nearest[near]]).all()
+        assert (out[~near] == NO_LABEL).all()
+        assert (conf[near] == confidence[kept][nearest[near]]).all()

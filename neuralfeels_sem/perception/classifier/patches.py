@@ -81,11 +81,17 @@ def pixel_labels(
     read = labels != NO_LABEL
     if not read.any():
         return out, conf
-    kept = centres[read]
-    rows, cols = np.mgrid[0 : shape[0], 0 : shape[1]]
-    d2 = (rows[..., None] - kept[:, 0]) ** 2 + (cols[..., None] - kept[:, 1]) ** 2
-    nearest = d2.argmin(axis=-1)
-    near = np.take_along_axis(d2, nearest[..., None], axis=-1)[..., 0] <= reach_px**2
+    # One pass per centre keeping the running nearest (the first of equals, as argmin
+    # would): no (H, W, K) array, a few times faster for the few centres of a touch.
+    rows = np.arange(shape[0], dtype=np.float64)[:, None]
+    cols = np.arange(shape[1], dtype=np.float64)[None, :]
+    best = np.full(shape, np.inf)
+    nearest = np.zeros(shape, dtype=np.int64)
+    for k, (r, c) in enumerate(centres[read]):
+        d2 = (rows - r) ** 2 + (cols - c) ** 2
+        closer = d2 < best
+        best[closer], nearest[closer] = d2[closer], k
+    near = best <= reach_px**2
     out[near] = labels[read][nearest[near]]
     conf[near] = np.asarray(confidence, np.float32)[read][nearest[near]]
     return out, conf
