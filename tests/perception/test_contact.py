@@ -99,3 +99,14 @@ def test_real_contact_frames_are_contact(shared_data: Path) -> None:
         image = _read(shared_data / "digit_real" / "contact" / name)
         assert gate.in_contact(image, reference), name
         assert gate.contact_fraction(image, reference) > 0.1
+
+
+def test_change_score_is_the_blurred_summed_rgb_change_less_the_drift() -> None:
+    rng = np.random.default_rng(3)
+    quiet = rng.integers(0, 256, (64, 48, 3), dtype=np.uint8)
+    frame = np.clip(quiet + rng.integers(-40, 60, (64, 48, 3)), 0, 255).astype(np.uint8)
+    gate = ContactGate(blur_px=2.0)
+    diff = frame.astype(np.float32) - quiet.astype(np.float32)
+    diff -= np.median(diff[::4, ::4].reshape(-1, 3), axis=0)
+    expected = cv2.GaussianBlur(np.abs(diff).sum(axis=2), (0, 0), 2.0)
+    np.testing.assert_array_equal(gate.difference(frame, quiet), expected)
