@@ -187,13 +187,13 @@ def _carve_rays(origin, direction, t_enter, t_exit, step, lo, voxel_size, carved
     One loop per ray instead of every ray's points as one array: the same voxels, without
     building millions of points per frame."""
     top = carved.shape[0] - 1
+    v = np.empty(3, dtype=np.int64)  # once: an allocation per point cost most of the loop
     for i in range(direction.shape[0]):
         k = 0
         while True:
             t = t_enter[i] + step * k
             if t > t_exit[i]:
                 break
-            v = np.empty(3, dtype=np.int64)
             for axis in range(3):
                 rel = (origin[axis] + t * direction[i, axis] - lo[axis]) / voxel_size
                 v[axis] = min(max(np.int64(np.floor(rel)), 0), top)
