@@ -37,7 +37,7 @@ class MappingConfig:
     # Frames between checkpoint.pt writes (0: only at the end; an interrupt writes one too):
     # 10 s of the sim rig's 10 Hz stream. Each write copies the updated rows on the mapper's
     # thread and packs ~100 MB of table and moments on another, about 1.5 CPU-seconds in
-    # all on the 2-core CPU: at 50 frames they took 7 % of a default run's CPU time.
+    # all on the 2-core CPU: at 50 frames, 7 % of a default run's CPU samples (py-spy).
     checkpoint_every: int = 100
     resume: str | None = None  # a checkpoint.pt to continue a killed run from
     # At sensor.pace=realtime: a frame due longer ago than this when the mapper could take

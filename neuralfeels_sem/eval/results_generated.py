@@ -42,6 +42,12 @@ def is_generated(run: Run) -> bool:
     return get(run.metrics, GENERATION) is not None
 
 
+def generated_pose_gt(runs: Sequence[Run]) -> list[Run]:
+    """Runs on generated objects that read the simulator's pose (tracked ones go to the
+    pose-tracking section, beside these as their `pose=gt` partners)."""
+    return [r for r in runs if is_generated(r) and not is_tracked(r)]
+
+
 def object_seed(run: Run) -> int:
     return int(get(run.metrics, f"{GENERATION}.seed"))
 
@@ -236,8 +242,7 @@ def generated_section(sources: Sequence[Source]) -> list[str]:
     of every source pooled, so settings from different sweeps compare on common objects."""
     lines, development = [], []
     for source in sources:
-        # tracked runs on generated objects are in the pose-tracking section
-        runs = [r for r in source.runs if is_generated(r) and not is_tracked(r)]
+        runs = generated_pose_gt(source.runs)
         development += [r for r in runs if object_seed(r) < EVALUATION_SEEDS_FROM]
         evaluation = [r for r in runs if object_seed(r) >= EVALUATION_SEEDS_FROM]
         if evaluation:

@@ -41,9 +41,13 @@ from neuralfeels_sem.core.errors import DataError
 from neuralfeels_sem.eval.results_assets import assets_section
 from neuralfeels_sem.eval.results_bench import speed_section
 from neuralfeels_sem.eval.results_drift import show
-from neuralfeels_sem.eval.results_generated import generated_section, is_generated
+from neuralfeels_sem.eval.results_generated import (
+    generated_pose_gt,
+    generated_section,
+    is_generated,
+)
 from neuralfeels_sem.eval.results_policy import is_policy_run, policy_section
-from neuralfeels_sem.eval.results_pose import is_tracked, pose_runs, pose_section
+from neuralfeels_sem.eval.results_pose import pose_runs, pose_section
 from neuralfeels_sem.eval.results_resume import resume_pairs, resume_section
 from neuralfeels_sem.eval.results_runs import (
     Run,
@@ -256,12 +260,6 @@ def table_runs(sources: Sequence[Source]) -> list[Run]:
     return out
 
 
-def generated_references(sources: Sequence[Source]) -> list[Run]:
-    """Runs on generated objects that read the simulator's pose: the `pose=gt` partners of
-    tracked runs on the same objects."""
-    return [r for s in sources for r in s.runs if is_generated(r) and not is_tracked(r)]
-
-
 def settings_sections(sources: Sequence[Source]) -> list[str]:
     """One table per source for its runs with other settings (ablations, overrides)."""
     lines = ["", "## Other settings", ""]
@@ -293,7 +291,7 @@ def render(sources: Sequence[Source], command: str, benches: Sequence[Path] = ()
         *perception_section(runs),
         *uncertainty_section(sources, runs),
         *generated_section(sources),
-        *pose_section(sources, runs + generated_references(sources)),
+        *pose_section(sources, runs + generated_pose_gt([r for s in sources for r in s.runs])),
         *policy_section(sources, runs),
         *resume_section(sources),
         *settings_sections(sources),

@@ -45,8 +45,8 @@ class MapperConfig:
     """`mapping.mapper`: OnlineMapper's settings (the command line's defaults)."""
 
     num_classes: int = len(DEFAULT_MATERIALS)  # conf: ${len:${materials}}; must match the field
-    # 2: three mapped no better at the 20 s default, and five no better than three, at a
-    # third more of the run's CPU (docs/field_and_mapper.md#steps-per-frame)
+    # 2: three (half as many steps again) mapped no better at the 20 s default, nor five
+    # better than three (docs/field_and_mapper.md#steps-per-frame)
     steps_per_frame: int = 2
     # fixed: steps_per_frame on every frame; surprise: min_steps_per_frame up to
     # steps_per_frame by how much of the new frame the field does not explain yet
