@@ -5,8 +5,9 @@ keyframes, views kept whenever the object has turned more than `keyframe_angle_d
 every kept one. A frame is also compared with the keyframes nearest in orientation (up to
 `keyframe_max_angle_deg` away): when the object comes back to an orientation it showed
 before, the frame is tied to the view taken then, so drift collected since does not stay
-(a loop closure on the current pose). Keyframe poses are fixed once kept: the map was
-built with them, and the mapper holds its points in the object frame.
+(a loop closure on the current pose). A keyframe's pose is the one its frame is mapped
+with: fixed once kept, unless the pose window (pose_window.py) refines that frame and
+re-places its points in the map, when `repose` moves the view with them.
 """
 
 from __future__ import annotations
@@ -153,6 +154,13 @@ class ColourKeyframes:
         )
         if far and (tracked or not self.keyframes):
             self.keyframes.append(view)
+
+    def repose(self, index: int, object_T_object: np.ndarray) -> None:
+        """Frame `index` was re-placed in the map by `object_T_object` (its object-frame
+        points x -> object_T_object x): its view's pose follows."""
+        for view in {id(v): v for v in (self.previous, *self.keyframes) if v}.values():
+            if view.index == index:
+                view.world_T_object = view.world_T_object @ invert_pose(object_T_object)
 
     def state(self) -> dict:
         """The previous view, the keyframes and the pixel sampler's state (for resume)."""

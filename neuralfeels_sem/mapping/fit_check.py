@@ -38,6 +38,11 @@ def inlier_share(r: Tensor, weights: Tensor, inlier_m: float) -> float:
     return float((weights * (r.abs() <= inlier_m)).sum()) / total
 
 
+def rms_mm(r: Tensor, weights: Tensor) -> float:
+    """Weighted root-mean-square residual in millimetres (the solve's report)."""
+    return 1e3 * float(torch.sqrt((weights * r * r).sum() / weights.sum()))
+
+
 def conditioning(q: Tensor, g: Tensor, weights: Tensor, rotation_scale: float) -> float:
     """Smallest / largest eigenvalue (0-1) of the data Gauss-Newton matrix at a pose.
 

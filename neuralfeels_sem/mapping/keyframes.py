@@ -70,6 +70,17 @@ class KeyframeBuffer:
         chosen = torch.multinomial(weights, k, replacement=False, generator=generator)
         return sorted(int(i) for i in chosen) + recent
 
+    def move_frame(self, frame_index: int, rotation: torch.Tensor, shift: torch.Tensor) -> int:
+        """Re-place the keyframes of one frame (x -> rotation x + shift, object frame: its
+        pose was refined); how many were moved."""
+        moved = 0
+        for i, index in enumerate(self.frame_indices):
+            if index == frame_index:
+                self.points[i] = self.points[i] @ rotation.T + shift
+                self.origins[i] = rotation @ self.origins[i] + shift
+                moved += 1
+        return moved
+
     def update_losses(self, keyframe_ids: list[int], losses: list[float]) -> None:
         for i, loss in zip(keyframe_ids, losses):
             self.losses[i] = float(loss)

@@ -177,7 +177,8 @@ class MapperConfig:
 class OnlineMapper:
     """Trains `field` online from Frames; see the module docstring for one frame's work.
 
-    Pose sources (pose_source.py) use only `frame_points`, `sdf` and `has_surface`.
+    Pose sources (pose_source.py) use only `frame_points`, `sdf`, `has_surface` and
+    `move_frame`.
     """
 
     def __init__(
@@ -224,6 +225,11 @@ class OnlineMapper:
         train it (and the encoding then takes its fused point-gradient kernel on the CPU)."""
         with frozen_parameters(self.field):
             return self.field.sdf(x)
+
+    def move_frame(self, frame_index: int, object_T_object: np.ndarray) -> int:
+        """Re-place what one frame added to the map (its pose was refined): the number of
+        keyframes and touches moved."""
+        return self.memory.move_frame(frame_index, object_T_object)
 
     @property
     def has_surface(self) -> bool:

@@ -126,6 +126,15 @@ class MapMemory:
         )
         return len(keep)
 
+    def move_frame(self, frame_index: int, object_T_object: np.ndarray) -> int:
+        """Re-place one frame's keyframes and touches after its pose was refined
+        (pose_window.py); the space prior's coarse record stays. Items moved."""
+        move = torch.as_tensor(np.asarray(object_T_object), dtype=torch.float32, device=self.device)
+        rotation, shift = move[:3, :3], move[:3, 3]
+        return self.keyframes.move_frame(frame_index, rotation, shift) + self.touches.move_frame(
+            frame_index, rotation, shift
+        )
+
     # ------------------------------------------------------------------ state
     def state_dict(self) -> dict:
         return {

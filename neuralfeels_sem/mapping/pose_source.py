@@ -26,8 +26,10 @@ from neuralfeels_sem.mapping.colour_keyframes import ColourKeyframes
 from neuralfeels_sem.mapping.fit_check import relative_failure
 from neuralfeels_sem.mapping.pose_error import PoseErrorLog, write_pose_error_plot
 from neuralfeels_sem.mapping.pose_tracker import PoseTracker, TrackerConfig
+from neuralfeels_sem.mapping.pose_window import PoseWindow
 from neuralfeels_sem.mapping.relocalise import relocalise
 from neuralfeels_sem.mapping.se3 import constant_velocity
+from neuralfeels_sem.mapping.track_counts import TrackingCounts
 
 log = logging.getLogger(__name__)
 
@@ -138,18 +140,11 @@ class TrackedPose(PoseSource):
         self._known_sdf = None
         self.history: list[np.ndarray] = []  # the last two estimates (motion prior)
         self.errors = PoseErrorLog(self._surface_points)
-        self.kept: dict[str, int] = {}  # why frames were not tracked, and how often
-        self.fit_curve: list[list[float]] = []  # [frame, inlier share, conditioning] of solves
-        self.tracked_frames = 0
-        self.reinitialised_frames = 0  # tracked only after a restart from the last pose
-        self.relocalised_frames = 0  # tracked only after re-localisation (relocalise.py)
-        self.degenerate_frames = 0  # tracked, some directions held by the motion prior
-        self.recent_shares: list[float] = []  # inlier shares of the last tracked frames
-        self.kept_in_a_row = 0  # frames not tracked since the last tracked one
-        self.colourless_frames = 0  # solved with colour on but no earlier view to compare
-        self.track_seconds = 0.0  # wall time spent tracking (SDF evaluations dominate)
+        self.counts = TrackingCounts()
         self.colour = ColourKeyframes(self.tracker.colour, seed)
         self._view = None  # the current frame's colour view
+        self._terms: list = []  # the current frame's colour rows
+        self.window = PoseWindow(self.tracker.window, self.tracker)  # off unless configured
 
     # ---------------------------------------------------------------- tracking
     def _sdf_fn(self, mapper: MapView):
@@ -162,7 +157,7 @@ class TrackedPose(PoseSource):
         return self._known_sdf
 
     def _keep(self, reason: str) -> None:
-        self.kept[reason] = self.kept.get(reason, 0) + 1
+        self.counts.kept[reason] = self.counts.kept.get(reason, 0) + 1
 
     def estimate(self, frame: Frame, mapper: MapView) -> np.ndarray:
         points = self._world_points(frame, mapper) if self.history else None
@@ -174,6 +169,7 @@ class TrackedPose(PoseSource):
             self._keep(WARM_UP)
         else:
             pose, tracked = self._track(frame, mapper, points)
+            pose = self._refine(frame.index, pose, tracked, points, mapper)
             # Only a tracked pose writes to the map (the warm-up frames above build it): a
             # frame mapped with a pose that fits badly teaches the field to agree with it.
             self.fuse = tracked
@@ -215,8 +211,8 @@ class TrackedPose(PoseSource):
         tensors = {source: torch.as_tensor(p) for source, p in points.items()}
         sdf_fn = self._sdf_fn(mapper)
         start = time.perf_counter()
-        terms = self.colour.terms(self._view, predicted)
-        self.colourless_frames += int(self.colour.enabled and not terms)
+        terms = self._terms = self.colour.terms(self._view, predicted)
+        self.counts.colourless_frames += int(self.colour.enabled and not terms)
         closest: tuple[np.ndarray, dict] | None = None  # best solve failing the drop only
 
         def solve(init: np.ndarray) -> tuple[np.ndarray, dict]:
@@ -237,29 +233,46 @@ class TrackedPose(PoseSource):
             found = relocalise(solve, self.history[-1], points, self.tracker.relocalise_deg)
             if found is not None:
                 (pose, info), relocalised = found, True
-        self.track_seconds += time.perf_counter() - start
+        self.counts.track_seconds += time.perf_counter() - start
         if info["skipped"] and closest is not None:
             pose, info = closest
         tracked = self._record(frame.index, info, retried, relocalised)
         return (pose if tracked or info.get("relative") else predicted), tracked
 
+    def _refine(self, index: int, pose: np.ndarray, tracked: bool, points, mapper) -> np.ndarray:
+        """The frame's pose refined with the last tracked frames' (pose_window.py); earlier
+        frames whose pose moved are re-placed in the map. A frame not tracked breaks the
+        motion chain: the window starts again."""
+        if not (self.window.enabled and tracked):
+            self.window.reset()
+            return pose
+        start = time.perf_counter()
+        pose, moves = self.window.refine(index, pose, points, self._sdf_fn(mapper), self._terms)
+        for moved, object_T_object in moves.items():
+            mapper.move_frame(moved, object_T_object)
+            self.colour.repose(moved, object_T_object)
+        if self.history and index - 1 in moves:  # the motion prior's last pose
+            self.history[-1] = self.history[-1] @ invert_pose(moves[index - 1])
+        self.counts.track_seconds += time.perf_counter() - start
+        return pose
+
     def _record(self, index: int, info: dict, retried: bool, relocalised: bool) -> bool:
         """Count the frame's outcome (its final solve's `info`); whether it was tracked."""
         if "inlier_share" in info:
-            self.fit_curve.append(
+            self.counts.fit_curve.append(
                 [int(index), float(info["inlier_share"]), float(info["conditioning"])]
             )
         if info["skipped"]:
             log.warning("pose tracking: frame %d not tracked: %s", index, info["skipped"])
             self._keep(info["skipped"].split(" (")[0])
-            self.kept_in_a_row += 1
+            self.counts.kept_in_a_row += 1
             return False
-        self.kept_in_a_row = 0
-        self.tracked_frames += 1
-        self.reinitialised_frames += int(retried and not relocalised)
-        self.relocalised_frames += int(relocalised)
-        self.degenerate_frames += int(info["degenerate"])
-        self.recent_shares = (self.recent_shares + [float(info["inlier_share"])])[
+        self.counts.kept_in_a_row = 0
+        self.counts.tracked_frames += 1
+        self.counts.reinitialised_frames += int(retried and not relocalised)
+        self.counts.relocalised_frames += int(relocalised)
+        self.counts.degenerate_frames += int(info["degenerate"])
+        self.counts.recent_shares = (self.counts.recent_shares + [float(info["inlier_share"])])[
             -self.tracker.fit_window :
         ]
         return True
@@ -270,10 +283,10 @@ class TrackedPose(PoseSource):
         After fit_window frames in a row were not tracked that reference is stale (the
         view has changed): the absolute checks alone decide until one is tracked again."""
         pose, info = self.tracker.track(tensors, sdf_fn, init, predicted, terms)
-        stale = self.kept_in_a_row >= self.tracker.fit_window
+        stale = self.counts.kept_in_a_row >= self.tracker.fit_window
         if not info["skipped"] and not stale:
             info["skipped"] = relative_failure(
-                info["inlier_share"], self.recent_shares, self.tracker.max_inlier_drop
+                info["inlier_share"], self.counts.recent_shares, self.tracker.max_inlier_drop
             )
             info["relative"] = info["skipped"] is not None
         return pose, info
@@ -287,41 +300,44 @@ class TrackedPose(PoseSource):
     @property
     def frames_not_tracked(self) -> int:
         """Frames after the first that were not tracked, for any reason."""
-        return sum(self.kept.values())
+        return sum(self.counts.kept.values())
 
     @property
     def frames_not_mapped(self) -> int:
         """Frames not tracked that the mapper did not fuse: all but the warm-up frames."""
-        return self.frames_not_tracked - self.kept.get(WARM_UP, 0)
+        return self.frames_not_tracked - self.counts.kept.get(WARM_UP, 0)
 
     def notes(self) -> list[str]:
         """One line on the frames that were not tracked (none when every frame was)."""
         if not self.frames_not_tracked:
             return []
-        reasons = ", ".join(f"{n} {why}" for why, n in sorted(self.kept.items()))
+        reasons = ", ".join(f"{n} {why}" for why, n in sorted(self.counts.kept.items()))
         return [
             f"pose: {self.frames_not_tracked} frames not tracked ({reasons}), "
-            f"{self.frames_not_mapped} of them not mapped; {self.tracked_frames} tracked"
+            f"{self.frames_not_mapped} of them not mapped; {self.counts.tracked_frames} tracked"
         ]
 
     def metrics(self) -> dict:
-        attempts = self.tracked_frames + sum(n for why, n in self.kept.items() if why != WARM_UP)
+        attempts = self.counts.tracked_frames + sum(
+            n for why, n in self.counts.kept.items() if why != WARM_UP
+        )
         out: dict = {
-            "pose_frames_tracked": self.tracked_frames,
-            "pose_frames_kept": dict(self.kept),
+            "pose_frames_tracked": self.counts.tracked_frames,
+            "pose_frames_kept": dict(self.counts.kept),
             "pose_frames_not_tracked": self.frames_not_tracked,
-            "pose_frames_reinitialised": self.reinitialised_frames,
-            "pose_frames_relocalised": self.relocalised_frames,
+            "pose_frames_reinitialised": self.counts.reinitialised_frames,
+            "pose_frames_relocalised": self.counts.relocalised_frames,
             "pose_frames_not_mapped": self.frames_not_mapped,
-            "pose_frames_degenerate": self.degenerate_frames,
-            "pose_frames_without_colour": self.colourless_frames,
+            "pose_frames_degenerate": self.counts.degenerate_frames,
+            "pose_frames_without_colour": self.counts.colourless_frames,
             "pose_colour_keyframes": len(self.colour.keyframes),
             "pose_notes": self.notes(),
             # every solve's time, including the ones rejected, over the frames that tried
-            "pose_track_s_per_frame": self.track_seconds / max(attempts, 1),
-            "pose_fit_curve": [list(row) for row in self.fit_curve],
+            "pose_track_s_per_frame": self.counts.track_seconds / max(attempts, 1),
+            "pose_fit_curve": [list(row) for row in self.counts.fit_curve],
         }
         out.update(self.errors.metrics())
+        out.update(self.window.metrics() if self.window.enabled else {})
         return out
 
     def write_pictures(self, out_dir, dpi: int) -> None:
@@ -334,34 +350,18 @@ class TrackedPose(PoseSource):
         return {
             "history": [p.tolist() for p in self.history],
             **self.errors.state(),
-            "kept": dict(self.kept),
-            "fit_curve": [list(row) for row in self.fit_curve],
-            "tracked_frames": self.tracked_frames,
-            "reinitialised_frames": self.reinitialised_frames,
-            "relocalised_frames": self.relocalised_frames,
-            "recent_shares": list(self.recent_shares),
-            "kept_in_a_row": self.kept_in_a_row,
-            "degenerate_frames": self.degenerate_frames,
-            "colourless_frames": self.colourless_frames,
-            "track_seconds": self.track_seconds,
+            **self.counts.state(),
             "colour": self.colour.state(),
+            "window": self.window.state(),
             "generator": self.tracker.generator.get_state(),
         }
 
     def load_state(self, state: dict) -> None:
         self.history = [np.asarray(p, dtype=np.float64) for p in state.get("history", [])]
         self.errors.load_state(state)
-        self.kept = {str(k): int(v) for k, v in state.get("kept", {}).items()}
-        self.fit_curve = [list(row) for row in state.get("fit_curve", [])]
-        self.tracked_frames = int(state.get("tracked_frames", 0))
-        self.reinitialised_frames = int(state.get("reinitialised_frames", 0))
-        self.relocalised_frames = int(state.get("relocalised_frames", 0))
-        self.recent_shares = [float(v) for v in state.get("recent_shares", [])]
-        self.kept_in_a_row = int(state.get("kept_in_a_row", 0))
-        self.degenerate_frames = int(state.get("degenerate_frames", 0))
-        self.colourless_frames = int(state.get("colourless_frames", 0))
-        self.track_seconds = float(state.get("track_seconds", 0.0))
+        self.counts.load_state(state)
         self.colour.load_state(state.get("colour", {}))
+        self.window.load_state(state.get("window", {}))
         if state.get("generator") is not None:
             self.tracker.generator.set_state(state["generator"])
         if self.history:

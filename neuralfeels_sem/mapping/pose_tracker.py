@@ -20,8 +20,10 @@ import torch
 from torch import Tensor
 
 from neuralfeels_sem.core.geometry import check_pose, invert_pose
+from neuralfeels_sem.mapping import fit_check
 from neuralfeels_sem.mapping.colour_keyframes import ColourConfig
 from neuralfeels_sem.mapping.fit_check import conditioning, divergence, fit_failure, inlier_share
+from neuralfeels_sem.mapping.pose_window import WindowConfig
 from neuralfeels_sem.mapping.residual_terms import (
     ROBUST_LOSSES,
     ResidualTerm,
@@ -99,6 +101,7 @@ class TrackerConfig:
     relocalise_deg: float = 15.0
     tolerance: float = 1.0e-6  # stop when a step changes the pose less than this (m, rad)
     colour: ColourConfig = field(default_factory=ColourConfig)  # colour_keyframes.py
+    window: WindowConfig = field(default_factory=WindowConfig)  # pose_window.py
     seed: int = 0
 
     def __post_init__(self) -> None:
@@ -158,10 +161,6 @@ class _Linearisation:
     w: Tensor
 
 
-def _rms_mm(r: Tensor, weights: Tensor) -> float:
-    return 1e3 * float(torch.sqrt((weights * r * r).sum() / weights.sum()))
-
-
 class PoseTracker:
     """Levenberg-Marquardt alignment of world points to an object-frame SDF."""
 
@@ -189,6 +188,7 @@ class PoseTracker:
         self.max_inlier_drop = float(config.max_inlier_drop)
         self.relocalise_deg = float(config.relocalise_deg)
         self.colour = ColourConfig.copy_of(config.colour)
+        self.window = WindowConfig.copy_of(config.window)
         self.generator = torch.Generator().manual_seed(int(config.seed))
 
     def source_weight(self, source: str) -> float:
@@ -362,9 +362,9 @@ class PoseTracker:
         if not (torch.isfinite(start.r).all() and torch.isfinite(start.g).all()):
             return self._reject(fallback, info, "diverged (non-finite SDF at the start)")
         n = len(sdf_pts)
-        info["initial_rms_mm"] = _rms_mm(start.r[:n], sdf_weights)
+        info["initial_rms_mm"] = fit_check.rms_mm(start.r[:n], sdf_weights)
         best = self._minimise(fn, start, pts, weights, prior_error, info)
-        info["final_rms_mm"] = _rms_mm(best.r[:n], sdf_weights)
+        info["final_rms_mm"] = fit_check.rms_mm(best.r[:n], sdf_weights)
         info["cost"] = best.cost
         result = invert_pose(best.obj_T_world)
         reason = divergence(

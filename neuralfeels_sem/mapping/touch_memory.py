@@ -113,6 +113,20 @@ class TouchBuffer:
             self._cat = cat
         return self._cat
 
+    def move_frame(self, frame_index: int, rotation: torch.Tensor, shift: torch.Tensor) -> int:
+        """Re-place the touches of one frame (x -> rotation x + shift, object frame: its
+        pose was refined; axes turn with it, the vote's centroids follow); how many."""
+        moved = [t for t, index in enumerate(self._frames) if index == frame_index]
+        for t in moved:
+            self._points[t] = self._points[t] @ rotation.T + shift
+            self._axes[t] = self._axes[t] @ rotation.T
+        for item, touch in enumerate(self._item_touch):
+            if touch in moved:
+                self._item_centroid[item] = rotation @ self._item_centroid[item] + shift
+        if moved:
+            self._cat = None
+        return len(moved)
+
     def _outvoted_points(self) -> torch.Tensor:
         """Per stored point: is its label left out (its touch's reading of that material
         outvoted, or named by too few of the touch's points to count as read)?"""
