@@ -76,6 +76,7 @@ class WindowFrame:
     pose: np.ndarray
     points: Tensor
     weights: Tensor
+    terms: Sequence[ResidualTerm] = ()  # its colour rows: they see turns the SDF cannot
 
 
 class PoseWindow:
@@ -110,15 +111,15 @@ class PoseWindow:
         frames whose pose moved (index -> the transform re-placing their object-frame
         points). `pose` is the frame's tracked pose, `terms` its extra rows (colour)."""
         pts, weights = self.tracker._gather(points_world)
-        newest = WindowFrame(index, np.asarray(pose, np.float64).copy(), pts, weights)
+        newest = WindowFrame(index, np.asarray(pose, np.float64).copy(), pts, weights, terms)
         free = [*self.frames, newest]
         moves: dict[int, np.ndarray] = {}
         if len(free) > 1 or len(self.anchors) == 2:
-            refined = self._solve(free, sdf_fn, terms)
+            refined = self._solve(free, sdf_fn)
             if refined is not None:
                 moves = self._apply(free, refined)
         keep = self._subset(newest.points, newest.weights)
-        self.frames.append(WindowFrame(index, newest.pose, *keep))
+        self.frames.append(WindowFrame(index, newest.pose, *keep, terms))
         while len(self.frames) >= self.config.frames:
             self.anchors = [*self.anchors, self.frames.pop(0).pose][-2:]
         return newest.pose, moves
@@ -141,12 +142,10 @@ class PoseWindow:
         return pts[keep], weights[keep]
 
     # ------------------------------------------------------------------ the solve
-    def _solve(self, free: list[WindowFrame], sdf_fn, terms) -> list[np.ndarray] | None:
+    def _solve(self, free: list[WindowFrame], sdf_fn) -> list[np.ndarray] | None:
         """Refined poses of `free` (None: the solve failed its checks)."""
         self.solves += 1
-        rows = [
-            stack_terms(sdf_fn, f.points, f.weights, terms if f is free[-1] else ()) for f in free
-        ]
+        rows = [stack_terms(sdf_fn, f.points, f.weights, f.terms) for f in free]
         x = [invert_pose(f.pose) for f in free]  # object_T_world, the unknowns
         lins = [self._evaluate(fn, xi, p, w) for (fn, p, w), xi in zip(rows, x)]
         cost = sum(lin.cost for lin in lins) + self._motion_cost(x)
