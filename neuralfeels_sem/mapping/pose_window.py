@@ -258,31 +258,12 @@ class PoseWindow:
         }
 
     def state(self) -> dict:
-        """Plain lists and tensors (checkpoints are never unpickled)."""
-        return {
-            "frames": [
-                {
-                    "index": f.index,
-                    "pose": f.pose.tolist(),
-                    "points": f.points,
-                    "weights": f.weights,
-                }
-                for f in self.frames
-            ],
-            "anchors": [a.tolist() for a in self.anchors],
-            "solves": self.solves,
-            "rejected": self.rejected,
-            "shifts_mm": list(self.shifts_mm),
-        }
+        """The counts only: a frame's colour rows are closures over views that are not kept
+        once it is past, so a resumed run starts its window again (docs/pose.md)."""
+        return {"solves": self.solves, "rejected": self.rejected, "shifts_mm": list(self.shifts_mm)}
 
     def load_state(self, state: dict) -> None:
-        self.frames = [
-            WindowFrame(
-                int(f["index"]), np.asarray(f["pose"], np.float64), f["points"], f["weights"]
-            )
-            for f in state.get("frames", [])
-        ]
-        self.anchors = [np.asarray(a, np.float64) for a in state.get("anchors", [])]
+        self.reset()
         self.solves = int(state.get("solves", 0))
         self.rejected = int(state.get("rejected", 0))
         self.shifts_mm = [float(v) for v in state.get("shifts_mm", [])]
