@@ -6,7 +6,9 @@ and depth error on the held-out presses, overall and per finger. Material classi
 (task=train_classifier / eval_classifier): its training data (with the kinds of press its
 `manifest.json` records), split and last training round; accuracy on the test split
 overall, per sensor, per class and per kind of press, and on the touches the gates keep,
-with what they left out and why; the confusion matrix. A figure a report lacks is shown
+with what they left out and why; the confusion matrix; and the same checkpoint on fresh
+collections (`held_out_*.json`): per kind of press and per bend radius of the surface
+pressed. A figure a report lacks is shown
 as n/a, never filled in; an absent report leaves its part out.
 """
 
@@ -18,10 +20,14 @@ from pathlib import Path
 
 from neuralfeels_sem.eval.results_runs import display_path, get
 from neuralfeels_sem.eval.results_tables import fmt, table
+from neuralfeels_sem.perception.classifier.evaluate import curvature_bin_labels
 from neuralfeels_sem.utils.paths import ASSETS_DIR
 
 TACTILE_DEPTH_REPORT = ASSETS_DIR / "tactile_depth" / "report.json"
 CLASSIFIER_REPORT = ASSETS_DIR / "classifier" / "report.json"
+# task=eval_classifier reports of the shipped checkpoint on collections made apart from its
+# training data (assets/classifier/README.md says how each was made).
+CLASSIFIER_HELD_OUT = tuple(sorted((ASSETS_DIR / "classifier").glob("held_out_*.json")))
 
 
 def read_report(path: Path) -> dict | None:
@@ -72,9 +78,15 @@ def tactile_depth_lines(report: dict, path: Path) -> list[str]:
     return head + table(["held-out", "contact IoU", "depth MAE mm"], rows)
 
 
-def accuracy_rows(report: dict, group: str, label: str) -> list[list[str]]:
+def accuracy_rows(
+    report: dict, group: str, label: str, order: Sequence[str] = ()
+) -> list[list[str]]:
+    """One row per entry of `group`, those named in `order` first and in that order."""
     rows = []
-    for name, value in (get(report, group) or {}).items():
+    entries = get(report, group) or {}
+    names = [n for n in order if n in entries] + [n for n in entries if n not in order]
+    for name in names:
+        value = entries[name]
         key = f"{group}.{name}.accuracy" if isinstance(value, dict) else f"{group}.{name}"
         count = value.get("count") if isinstance(value, dict) else None
         cell = number(report, key, 100.0)
@@ -92,6 +104,7 @@ def classifier_lines(report: dict, path: Path) -> list[str]:
         *accuracy_rows(report, "per_sensor", "sensor"),
         *accuracy_rows(report, "per_class", "class"),
         *accuracy_rows(report, "per_press_kind", "press"),
+        *accuracy_rows(report, "per_curvature", "bend radius", curvature_bin_labels()),
         [
             "touches kept by the gates (share of the test split)",
             number(report, "gated_test.kept_share", 100.0),
@@ -149,8 +162,36 @@ def confusion_lines(report: dict) -> list[str]:
     ]
 
 
+def held_out_lines(report: dict, path: Path) -> list[str]:
+    """The shipped classifier on a fresh collection: overall, per kind of press and per
+    bend radius of the surface pressed, and at the mapper's gates."""
+    rows = [
+        [
+            "**all images**",
+            number(report, "test_accuracy", 100.0) + f" ({text(report, 'test_count')})",
+        ],
+        *accuracy_rows(report, "per_press_kind", "press"),
+        *accuracy_rows(report, "per_curvature", "bend radius", curvature_bin_labels()),
+        ["touches kept by the gates (share)", number(report, "gated.kept_share", 100.0)],
+        ["accuracy on the kept touches", number(report, "gated.accuracy_kept", 100.0)],
+    ]
+    root = get(report, "data.root")
+    head = [
+        f"### Material classifier on a fresh collection (`{display_path(path)}`)",
+        "",
+        "Simulated presses collected apart from the training data"
+        + (f" (`{display_path(Path(str(root)))}`)" if root else "")
+        + ", judged by the shipped checkpoint. The bend radius is the surface's at the "
+        "press: one over its largest principal curvature over the gel's footprint.",
+        "",
+    ]
+    return head + table(["held-out figure", "accuracy % (images)"], rows)
+
+
 def assets_section(
-    depth_report: Path = TACTILE_DEPTH_REPORT, classifier_report: Path = CLASSIFIER_REPORT
+    depth_report: Path = TACTILE_DEPTH_REPORT,
+    classifier_report: Path = CLASSIFIER_REPORT,
+    held_out: Sequence[Path] = CLASSIFIER_HELD_OUT,
 ) -> Sequence[str]:
     parts: list[str] = []
     depth = read_report(depth_report)
@@ -159,6 +200,10 @@ def assets_section(
     classifier = read_report(classifier_report)
     if classifier is not None:
         parts += classifier_lines(classifier, classifier_report) + [""]
+    for path in held_out:
+        report = read_report(path)
+        if report is not None:
+            parts += held_out_lines(report, path) + [""]
     if not parts:
         return []
     intro = [

@@ -42,6 +42,7 @@ from neuralfeels_sem.core.geometry import rotation_matrix
 from neuralfeels_sem.objects.material_object import MaterialObject
 from neuralfeels_sem.sim.backgrounds import finger_seed
 from neuralfeels_sem.sim.digit_poses import pose_pressing, pose_pressing_edge
+from neuralfeels_sem.sim.surface_curvature import SurfaceCurvature
 from neuralfeels_sem.sim.touch_sources import (
     FeatureEdges,
     library_objects,
@@ -91,6 +92,7 @@ class _Written:
     counts: dict[str, dict[str, int]]
     used: dict[str, dict[str, defaultdict]]
     presses: dict[str, str] = field(default_factory=dict)
+    curvatures: dict[str, float] = field(default_factory=dict)  # 1/m at each press
     edge_presses: int = 0
     rejected: int = 0
 
@@ -184,10 +186,11 @@ def _collect_from(
         s: DigitRenderer(obj, seed=finger_seed(seed, s), **settings.tactile) for s in sensors
     }
     features = FeatureEdges.of(obj) if float(settings.feature_press_fraction) > 0.0 else None
+    curvature = SurfaceCurvature(obj.mesh, seed=seed)
     try:
         for sensor, c, k in jobs:
             sample_rng = np.random.default_rng([seed, source_index, sensors.index(sensor), c, k])
-            render, on_feature, edge = _press_until_clean(
+            render, on_feature, edge, touch = _press_until_clean(
                 renderers[sensor],
                 obj,
                 sensor,
@@ -200,7 +203,9 @@ def _collect_from(
             )
             path = root / sensor / class_names[c] / f"{k:05d}.png"
             cv2.imwrite(str(path), cv2.cvtColor(render.image, cv2.COLOR_RGB2BGR))
-            written.presses[path.relative_to(root).as_posix()] = PRESS_KINDS[(on_feature, edge)]
+            key = path.relative_to(root).as_posix()
+            written.presses[key] = PRESS_KINDS[(on_feature, edge)]
+            written.curvatures[key] = round(curvature.at(touch.point, touch.normal), 3)
             written.counts[sensor][class_names[c]] += 1
             written.edge_presses += int(edge)
             written.used[sensor][class_names[c]][obj.name] += 1
@@ -227,7 +232,8 @@ def _press_until_clean(
     settings: CollectionSettings,
     written: _Written,
 ):
-    """Press until a render has enough contact of purity `min_purity`; (render, on_feature, edge)."""
+    """Press until a render has enough contact of purity `min_purity`; (render, on_feature,
+    edge, touch)."""
     for _ in range(TRIES_PER_SAMPLE):
         # Drawn only when enabled, so data sets without feature presses repeat.
         on_feature = (
@@ -241,7 +247,7 @@ def _press_until_clean(
         contact = int(render.contact_mask.sum())
         purity = float((render.material[render.contact_mask] == c).mean()) if contact else 0.0
         if contact >= int(settings.min_contact_px) and purity >= float(settings.min_purity):
-            return render, on_feature, edge
+            return render, on_feature, edge, touch
         written.rejected += 1
     raise DataError(
         f"could not get a clean {class_names[c]} touch on {obj.name} for {sensor} in "
@@ -330,6 +336,10 @@ def _manifest(class_names: list[str], settings: CollectionSettings, written: _Wr
         "feature_press_fraction": float(settings.feature_press_fraction),
         "press_counts": dict(sorted(Counter(written.presses.values()).items())),
         "presses": dict(sorted(written.presses.items())),
+        # Largest surface curvature (1/m) at each press (sim/surface_curvature.py); NaN as null.
+        "curvatures": {
+            k: (v if np.isfinite(v) else None) for k, v in sorted(written.curvatures.items())
+        },
         "min_purity": float(settings.min_purity),
         "min_contact_px": int(settings.min_contact_px),
         "image_size": [320, 240],

@@ -259,7 +259,7 @@ def test_shipped_checkpoints_come_from_their_reports(tmp_path: Path) -> None:
     report = {"test_accuracy": 0.975, "test_count": 80, "per_sensor": {"index": 0.95}}
     report["per_press_kind"] = {"edge": {"accuracy": 0.5, "count": 4}}
     classifier.write_text(json.dumps(report))
-    text = "\n".join(assets_section(depth, classifier))
+    text = "\n".join(assets_section(depth, classifier, ()))
     assert cells(text, "**overall**")[1:] == ["0.950", "0.200"]
     assert cells(text, "thumb")[1:] == ["0.900", "0.250"]
     assert cells(text, "**test split**")[1] == "97.5 (80)"
@@ -268,7 +268,28 @@ def test_shipped_checkpoints_come_from_their_reports(tmp_path: Path) -> None:
     assert cells(text, "validation split")[1] == "n/a"  # absent from the report: not filled in
     assert "Trained on n/a presses over n/a backgrounds" in text
     assert "The gates" not in text and "Confusion" not in text  # no such blocks reported
-    assert assets_section(tmp_path / "none.json", tmp_path / "none.json") == []
+    assert assets_section(tmp_path / "none.json", tmp_path / "none.json", ()) == []
+
+
+def test_fresh_collections_show_presses_and_bend_radii(tmp_path: Path) -> None:
+    from neuralfeels_sem.eval.results_assets import assets_section
+
+    report = {"test_accuracy": 0.9, "test_count": 20, "data": {"root": "data/tactile/fresh"}}
+    report["per_press_kind"] = {"feature": {"accuracy": 0.75, "count": 4}}
+    report["per_curvature"] = {
+        "R >= 80 mm": {"accuracy": 1.0, "count": 10},
+        "R < 12 mm": {"accuracy": 0.5, "count": 6},
+    }
+    report["gated"] = {"kept_share": 0.8, "accuracy_kept": 0.95}
+    (tmp_path / "held_out_1.json").write_text(json.dumps(report))
+    none = tmp_path / "none.json"
+    text = "\n".join(assets_section(none, none, [tmp_path / "held_out_1.json", none]))
+    assert "## Shipped checkpoints" in text and "(`data/tactile/fresh`)" in text
+    assert cells(text, "**all images**")[1] == "90.0 (20)"
+    assert cells(text, "press `feature`")[1] == "75.0 (4)"
+    assert cells(text, "bend radius `R < 12 mm`")[1] == "50.0 (6)"
+    assert text.index("`R < 12 mm`") < text.index("`R >= 80 mm`")  # tightest bend first
+    assert cells(text, "accuracy on the kept touches")[1] == "95.0"
 
 
 def test_shipped_classifier_training_gates_and_confusion_come_from_its_files(
@@ -290,7 +311,7 @@ def test_shipped_classifier_training_gates_and_confusion_come_from_its_files(
     depth = {"train_samples": 20, "train_backgrounds": ["procedural:0", "real.png"]}
     depth |= {"settings": {"epochs": 3, "batch_size": 2}, "train_wall_s": 9.6}
     (tmp_path / "depth.json").write_text(json.dumps(depth))
-    text = "\n".join(assets_section(tmp_path / "depth.json", tmp_path / "report.json"))
+    text = "\n".join(assets_section(tmp_path / "depth.json", tmp_path / "report.json", ()))
     assert (
         "Trained on 20 presses over 2 backgrounds, 3 epochs at batch 2; training took 10 s" in text
     )
@@ -301,7 +322,7 @@ def test_shipped_classifier_training_gates_and_confusion_come_from_its_files(
     assert cells(text, "`wood`")[1:] == ["1", "3"]
     # Without a manifest beside the report the kinds of press are left out.
     (tmp_path / "manifest.json").unlink()
-    text = "\n".join(assets_section(tmp_path / "depth.json", tmp_path / "report.json"))
+    text = "\n".join(assets_section(tmp_path / "depth.json", tmp_path / "report.json", ()))
     assert "40 simulated images, split 24 / 8 / 8" in text
 
 

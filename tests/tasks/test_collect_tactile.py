@@ -59,6 +59,10 @@ def test_writes_a_balanced_dataset_with_manifest(tmp_path: Path) -> None:
     assert manifest["classes"] == CLASSES and manifest["seed"] == 0
     assert manifest["renderer_seeds"] == {"index": 0, "thumb": 3}
     assert sum(manifest["objects"]["index"]["fabric"].values()) == 2
+    # Every image has the surface curvature where it was pressed (primitives: 0 to 1/18 mm,
+    # more at a box edge).
+    assert sorted(manifest["curvatures"]) == sorted(manifest["presses"])
+    assert all(k is None or k >= 0 for k in manifest["curvatures"].values())
     # Images show contact: they differ from the sensor's background.
     image = cv2.imread(str(root / "thumb" / "wood" / "00000.png")).astype(int)
     assert np.abs(image - b).max() > 40

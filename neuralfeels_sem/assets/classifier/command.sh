@@ -35,3 +35,6 @@ python -m neuralfeels_sem.sim.rig_touches data/tactile/rig_seed0 --seed 0
 python -m neuralfeels_sem.sim.rig_touches data/tactile/rig_seed5 --seed 5
 # report.json: the test split (split.json "test") copied to a folder with its manifest entries, then
 python run.py task=eval_classifier dataset.root=data/tactile/sim_v6_test
+# held_out_fresh_mixed_781.json: a fresh collection with sim_v6's recipe (per-image kind of press and surface curvature in its manifest), judged by the shipped checkpoint
+python run.py task=collect_tactile task.root=data/tactile/fresh_mixed_781 task.samples_per_class_per_sensor=100 task.edge_press_fraction=0.4 task.feature_press_fraction=0.25 seed=781
+python run.py task=eval_classifier dataset.root=data/tactile/fresh_mixed_781

@@ -21,6 +21,7 @@ from tqdm import tqdm
 
 from neuralfeels_sem.core.digit import DIGIT_HEIGHT, DIGIT_WIDTH
 from neuralfeels_sem.core.errors import DataError
+from neuralfeels_sem.perception.classifier.evaluate import curvature_bin
 from neuralfeels_sem.perception.classifier.transforms import preprocess
 from neuralfeels_sem.utils.paths import REPO_DIR
 
@@ -226,22 +227,37 @@ def press_kinds(root: str | Path, paths: list[str]) -> np.ndarray | None:
     relative to root); None for data without it (older sim sets, real recordings).
     Images the manifest does not list are "unknown".
     """
+    entries = _per_image(root, paths, "presses")
+    return None if entries is None else np.asarray([str(e or "unknown") for e in entries])
+
+
+def curvature_bins(root: str | Path, paths: list[str]) -> np.ndarray | None:
+    """Each image's bin of surface curvature at the press (sim/surface_curvature.py), from
+    the manifest's `curvatures` (1/m per image); None for data sets without them."""
+    entries = _per_image(root, paths, "curvatures")
+    if entries is None:
+        return None
+    return np.asarray([curvature_bin(float("nan") if e is None else float(e)) for e in entries])
+
+
+def _per_image(root: str | Path, paths: list[str], key: str) -> list | None:
+    """The manifest's `key` entry of each image (None where it lists none), or None when
+    the data set's manifest has no such table."""
     root = resolve_path(root)
     manifest = root / "manifest.json"
     if not manifest.is_file():
         return None
     try:
-        presses = json.loads(manifest.read_text()).get("presses")
+        table = json.loads(manifest.read_text()).get(key)
     except (json.JSONDecodeError, UnicodeDecodeError, AttributeError):
-        log.warning("%s is not a readable JSON manifest; no per-press-kind figures", manifest)
+        log.warning("%s is not a readable JSON manifest; no per-%s figures", manifest, key)
         return None
-    if not isinstance(presses, dict):
+    if not isinstance(table, dict):
         return None
-    kinds = []
+    entries = []
     for path in paths:
         try:
-            key = Path(path).resolve().relative_to(root).as_posix()
+            entries.append(table.get(Path(path).resolve().relative_to(root).as_posix()))
         except ValueError:
-            key = None
-        kinds.append(str(presses.get(key, "unknown")))
-    return np.asarray(kinds)
+            entries.append(None)
+    return entries

@@ -97,8 +97,33 @@ def test_report(
     }
 
 
+# Bins of the bend radius 1 / curvature (mm) at a press: rims and edges; the tight
+# training primitives (18-25 mm); gentle bends (35-45 mm); flat.
+CURVATURE_BINS_MM = ((0.0, 12.0), (12.0, 30.0), (30.0, 80.0), (80.0, float("inf")))
+
+
+def curvature_bin_labels() -> list[str]:
+    """Every bin's label, tightest bend first (the order reports are read in)."""
+    lows = [low for low, _ in CURVATURE_BINS_MM]
+    return [curvature_bin(1e3 / (low + 1.0)) for low in lows]
+
+
+def curvature_bin(curvature_per_m: float) -> str:
+    """The bin label of a curvature: its bend radius range in millimetres ("unknown": NaN)."""
+    if not np.isfinite(curvature_per_m):
+        return "unknown"
+    radius_mm = 1e3 / curvature_per_m if curvature_per_m > 0 else float("inf")
+    for low, high in CURVATURE_BINS_MM:
+        if radius_mm < high or not np.isfinite(high):
+            if low == 0:
+                return f"R < {high:g} mm"
+            return f"R {low:g}-{high:g} mm" if np.isfinite(high) else f"R >= {low:g} mm"
+    return "unknown"
+
+
 def per_press_kind(y_true: np.ndarray, y_pred: np.ndarray, kinds: np.ndarray) -> dict:
-    """{kind: {"accuracy", "count"}}: accuracy per kind of press (centre, edge, feature, ...).
+    """{kind: {"accuracy", "count"}}: accuracy per kind of press (centre, edge, feature, ...),
+    or per any other label of each image (the curvature bin at the press).
 
     Centred presses are the paper's protocol (a sample pressed onto the gel); edge and
     feature presses are the rig's harder imprints.

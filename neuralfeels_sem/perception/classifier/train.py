@@ -30,6 +30,7 @@ from neuralfeels_sem.perception.classifier.dataset import (
     LoadedSet,
     Sample,
     class_counts,
+    curvature_bins,
     data_summary,
     load_backgrounds,
     load_samples,
@@ -273,9 +274,12 @@ def _report(predict, loaded: LoadedSet, parts: dict, data_root: str, class_names
     test_pred = predict_in_batches(predict, loaded.images[te], 64, "test")
     report = test_report(loaded.labels[te], test_pred, loaded.sensors[te], class_names)
     report["val_accuracy"] = float((val_pred == loaded.labels[va]).mean())
-    kinds = press_kinds(data_root, loaded.paths)
-    if kinds is not None:
-        report["per_press_kind"] = per_press_kind(loaded.labels[te], test_pred, kinds[te])
+    for key, groups in (
+        ("per_press_kind", press_kinds(data_root, loaded.paths)),
+        ("per_curvature", curvature_bins(data_root, loaded.paths)),
+    ):
+        if groups is not None:
+            report[key] = per_press_kind(loaded.labels[te], test_pred, groups[te])
     report["counts"] = {"train": len(parts["train"]), "val": len(va), "test": len(te)}
     report["data"] = {
         **data_summary(data_root, loaded),
