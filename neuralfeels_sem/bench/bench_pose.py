@@ -10,6 +10,9 @@ the frame's points: SDF alone (a trial step) and SDF with its gradient (an accep
 (c) The colour rows (docs/pose.md): a frame of the painted sphere (mapping/painted_sphere.py)
 tracked against the same field with and without its colour rows against two earlier
 views: milliseconds per frame, field passes (trial steps and gradients) and colour rows.
+(d) The pose window (`mapping.tracker.window.frames=4`, off by default): milliseconds of
+one joint refinement of four frames (the newest with all its points, three earlier ones
+with their subsets) against the same field, beside one per-frame solve.
 """
 
 from __future__ import annotations
@@ -108,6 +111,27 @@ def _colour(field) -> dict:
     return out
 
 
+def _window(field, obj, truth: np.ndarray) -> dict:
+    """Milliseconds per joint refinement of a full window (4 frames) against `field`."""
+    from neuralfeels_sem.mapping.pose_window import PoseWindow, WindowConfig
+
+    turn = se3_exp(np.array([0.0005, 0.0, 0.0, 0.0, 0.0, np.deg2rad(3.0)]))
+    poses = [truth]
+    for _ in range(5):
+        poses.append(poses[-1] @ turn)
+    frames = [_frame(obj, pose, seed=k) for k, pose in enumerate(poses)]
+    config = TrackerConfig(rotation_scale=obj.bounds_radius, min_inlier_share=0.0)
+    times = []
+    for _ in range(REPEATS):
+        window = PoseWindow(WindowConfig(frames=4), PoseTracker(config))
+        for k, (pose, points) in enumerate(zip(poses, frames)):
+            start = time.perf_counter()
+            window.refine(k, pose, points, field.sdf)
+            if k >= 4:  # three earlier frames and two anchors: the window is full
+                times.append(time.perf_counter() - start)
+    return {"frames": 4, "ms_per_refinement": round(1e3 * float(np.mean(times)), 1)}
+
+
 def run() -> dict:
     obj = make_object("patched_toy", CLASSES)
     truth = np.eye(4)
@@ -138,4 +162,5 @@ def run() -> dict:
         "known_shape": known,
         "field": learned,
         "colour": _colour(colour_field),
+        "window": _window(field, obj, truth),
     }

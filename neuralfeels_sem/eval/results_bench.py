@@ -141,6 +141,7 @@ FIGURES: tuple[tuple[str, str, str, str], ...] = (
         "pose tracking against the field with colour rows (painted sphere)",
         "ms/frame",
     ),
+    ("pose", "window.ms_per_refinement", "pose window: one joint refinement of 4 frames", "ms"),
     ("pose", "grid_96_build_s", "true-shape SDF grid (96^3) build", "s"),
     ("checkpoint", "size_mb", "checkpoint of the default config", "MB"),
     ("checkpoint", "exact_size_mb", "checkpoint, exact storage", "MB"),
