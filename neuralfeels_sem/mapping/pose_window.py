@@ -41,13 +41,15 @@ class WindowConfig:
         was tracked with); the newest frame uses all of its rows.
     motion_weight: weight of each squared motion residual (translation in metres,
         rotation times the tracker's rotation_scale), relative to one frame's mean robust
-        SDF cost.
+        SDF cost. 0 refits each frame of the window on its own against the current field;
+        at 0.1 the coupling pulled poses toward the extrapolated motion and the tracker
+        lost frames it otherwise kept (docs/pose.md).
     iterations: Levenberg-Marquardt iterations of the joint solve.
     """
 
     frames: int = 0
     points_per_frame: int = 300
-    motion_weight: float = 0.1
+    motion_weight: float = 0.0
     iterations: int = 3
 
     def __post_init__(self) -> None:
