@@ -155,12 +155,14 @@ class PoseWindow:
         for _ in range(self.config.iterations):
             h, b = self._normal_equations(lins, rows, x)
             accepted = False
+            # Unlike the tracker's solve, no cap on rejected trials: the window's figures
+            # (docs/pose.md) were measured this way.
             while mu < 1e8 and not accepted:
                 delta = -np.linalg.solve(h + mu * np.diag(np.diag(h) + 1e-12), b)
-                trial = [se3_exp(delta[6 * i : 6 * i + 6]) @ xi for i, xi in enumerate(x)]
                 if self._too_far(delta):
                     mu *= 10.0
                     continue
+                trial = [se3_exp(delta[6 * i : 6 * i + 6]) @ xi for i, xi in enumerate(x)]
                 trial_lins = [
                     self._evaluate(fn, xi, p, w, False) for (fn, p, w), xi in zip(rows, trial)
                 ]
