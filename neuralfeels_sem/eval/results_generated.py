@@ -42,9 +42,10 @@ def is_generated(run: Run) -> bool:
     return get(run.metrics, GENERATION) is not None
 
 
-def generated_pose_gt(runs: Sequence[Run]) -> list[Run]:
-    """Runs on generated objects that read the simulator's pose (tracked ones go to the
-    pose-tracking section, beside these as their `pose=gt` partners)."""
+def generated_references(runs: Sequence[Run]) -> list[Run]:
+    """Runs on generated objects that read the simulator's pose: the tables of this
+    section, and the partners that tracked runs (`pose=gt`) and active-touch runs
+    (`sensor.policy=scripted`) are compared with in their own sections."""
     return [r for r in runs if is_generated(r) and not is_tracked(r)]
 
 
@@ -242,7 +243,7 @@ def generated_section(sources: Sequence[Source]) -> list[str]:
     of every source pooled, so settings from different sweeps compare on common objects."""
     lines, development = [], []
     for source in sources:
-        runs = generated_pose_gt(source.runs)
+        runs = generated_references(source.runs)
         development += [r for r in runs if object_seed(r) < EVALUATION_SEEDS_FROM]
         evaluation = [r for r in runs if object_seed(r) >= EVALUATION_SEEDS_FROM]
         if evaluation:

@@ -42,7 +42,7 @@ from neuralfeels_sem.eval.results_assets import assets_section
 from neuralfeels_sem.eval.results_bench import speed_section
 from neuralfeels_sem.eval.results_drift import show
 from neuralfeels_sem.eval.results_generated import (
-    generated_pose_gt,
+    generated_references,
     generated_section,
     is_generated,
 )
@@ -275,6 +275,9 @@ def settings_sections(sources: Sequence[Source]) -> list[str]:
 
 def render(sources: Sequence[Source], command: str, benches: Sequence[Path] = ()) -> str:
     runs = table_runs(sources)
+    # What tracked and active-touch runs are compared with: default-config runs, and runs
+    # on generated objects with the simulator's pose (their own section's tables).
+    references = runs + generated_references([r for s in sources for r in s.runs])
     lines = [
         "# Results",
         "",
@@ -291,8 +294,8 @@ def render(sources: Sequence[Source], command: str, benches: Sequence[Path] = ()
         *perception_section(runs),
         *uncertainty_section(sources, runs),
         *generated_section(sources),
-        *pose_section(sources, runs + generated_pose_gt([r for s in sources for r in s.runs])),
-        *policy_section(sources, runs),
+        *pose_section(sources, references),
+        *policy_section(sources, references),
         *resume_section(sources),
         *settings_sections(sources),
         *assets_section(),

@@ -101,6 +101,17 @@ def test_tracked_runs_on_generated_objects_go_to_the_pose_section(tmp_path: Path
     assert row[2] == "2.00 / 2.00 / 1.50" and row[6] == "76.0" and row[8] == "60.0"
 
 
+def test_active_runs_on_generated_objects_beside_their_scripted_runs(tmp_path: Path) -> None:
+    """An active-touch sweep on generated objects is compared with the scripted (default)
+    run of the same object from another sweep."""
+    reference, active = tmp_path / "multirun" / "dev", tmp_path / "multirun" / "dev_active"
+    write_generated(reference, {1: 80.0, 2: 60.0}, [])
+    write_generated(active, {2: 70.0}, ["sensor.policy=active"])
+    page = generate(tmp_path, reference, active)
+    row = cells(section(page, "Active touch"), "object=random")  # object.seed=2: every run
+    assert row[3] == "60.0†" and row[6] == "70.0" and row[9] == "+10.0"
+
+
 def test_a_preset_picked_generated_object_is_the_same_object(tmp_path: Path) -> None:
     """A sweep that picked object=random through a preset names its runs by the metrics'
     `random_<seed>`; a tracked run with `object=random` finds it as its pose=gt partner."""
