@@ -187,12 +187,3 @@ def test_support_is_looked_for_within_its_own_radius() -> None:
         crowd, torch.tensor([0, 2, 2, 2]), 0.01, 3, 0.25, 1, support_radius=0.05
     )
     assert wrong_in_crowd.tolist() == [True, False, False, False]
-
-
-def test_left_out_names_the_frame_and_finger_of_outvoted_touches() -> None:
-    """A lone press of its own material, no other press backing it: the vote drops it."""
-    buf = TouchBuffer(CPU, vote(radius=0.01, min_neighbours=3, min_support=1))
-    for frame, (x, label) in enumerate([(0.0, 1), (0.002, 1), (0.1, 2)]):
-        points = torch.full((4, 3), x)
-        buf.add(points, torch.tensor([0.0, 0.0, 1.0]), label, 1.0, "index", frame * 5)
-    assert buf.left_out() == {(10, "index")}

@@ -120,26 +120,6 @@ def test_novelty_from_pressed_counts_an_abstained_press_but_not_a_miss(tmp_path)
     assert advisor.advice.touch_distance(np.array([[0.0, 0.0, RADIUS]]))[0] < 1e-9
 
 
-def test_a_touch_the_label_vote_left_out_keeps_its_place_novel(tmp_path) -> None:
-    """`labelled` counts the touches the map trains on: the mapper's vote has the last word."""
-
-    class Voted(Mapper):
-        class memory:  # noqa: N801 - stands in for MapMemory
-            class touches:  # noqa: N801 - stands in for TouchBuffer
-                @staticmethod
-                def left_out() -> set:
-                    return {(1, "index")}
-
-    for novelty_from, counted in (("labelled", 1), ("pressed", 2)):
-        config = TouchAdvisorConfig(surface_points=64, novelty_from=novelty_from)
-        advisor = TouchAdvisor(config, AdvisedSensor(), tmp_path)
-        for i in range(2):
-            advisor.on_frame(
-                _frame(i), {"index": TouchLabel("index", True, 2, 0.99)}, np.eye(4), Voted()
-            )
-        assert len(advisor.touched) == counted and len(advisor.advice.touched) == counted
-
-
 def test_an_unknown_novelty_source_is_refused() -> None:
     with pytest.raises(ValueError, match="mapping.advisor.novelty_from"):
         TouchAdvisorConfig(novelty_from="seen")
