@@ -195,11 +195,6 @@ class TouchBuffer:
         )
         return (read > 0) & (kept == 0)
 
-    def left_out(self) -> set[tuple[int, str | None]]:
-        """(frame index, finger) of every labelled touch the vote leaves out entirely."""
-        flags = self.outvoted().tolist()
-        return {(self._frames[t], self._fingers[t]) for t, out in enumerate(flags) if out}
-
     def _add_items(self, touch: int, points: torch.Tensor, labels: torch.Tensor) -> None:
         """Record the materials a touch reads and the centroid of the points reading each."""
         for material in materials_read(labels):

@@ -113,8 +113,7 @@ class TouchAdvisor:
     def __init__(self, config: TouchAdvisorConfig, sensor, out: Path) -> None:
         self.config, self.sensor, self.out = config, sensor, Path(out)
         self.directions = sphere_directions(config.surface_points)
-        self.pressed: list[tuple] = []  # (frame, finger, gel point in the field frame)
-        self.touched: list[np.ndarray] = []  # those counted for novelty (`novelty_from`)
+        self.touched: list[np.ndarray] = []  # touches counted for novelty, field frame
         self.surface = np.zeros((0, 3))
         self.entropy = np.zeros(0)
         self.advice: TouchAdvice | None = None
@@ -128,8 +127,7 @@ class TouchAdvisor:
             if reading is None or not self._counts(label):
                 continue
             gel = reading.world_T_sensor @ np.array([0.0, 0.0, GEL_DISTANCE_M, 1.0])
-            self.pressed.append((frame.index, finger, (object_T_world @ gel)[:3]))
-        self.touched = self._novelty_points(mapper)
+            self.touched.append((object_T_world @ gel)[:3])
         if self.mapped % self.config.every_frames == 0:
             self.surface, self.entropy = surface_samples(mapper.field, self.directions)
         self.mapped += 1
@@ -147,16 +145,6 @@ class TouchAdvisor:
         )
         if getattr(self.sensor, "accepts_advice", False):
             self.sensor.advise(frame.index, self.advice)
-
-    def _novelty_points(self, mapper) -> list[np.ndarray]:
-        """The touches counted for novelty: with `labelled`, those whose label the map
-        trains on, so a reading the label vote left out (a lone press on a small patch)
-        keeps its place novel and may be pressed again."""
-        touches = getattr(getattr(mapper, "memory", None), "touches", None)
-        left_out = (
-            touches.left_out() if self.config.novelty_from == "labelled" and touches else set()
-        )
-        return [gel for index, finger, gel in self.pressed if (index, finger) not in left_out]
 
     def _counts(self, label: TouchLabel) -> bool:
         """Whether this touch makes its place less novel (`novelty_from`)."""
