@@ -1,13 +1,14 @@
 """Sliding-window refinement of the last tracked poses (`mapping.tracker.window`).
 
-Per-frame tracking fits each frame alone, and the pose a frame is mapped with carries
-that frame's noise into the field. The window re-solves the poses of the last `frames`
-tracked frames jointly: each against the current field with a subset of its own points
-(the newest frame with all its rows, colour included), tied together by constant-velocity
-motion residuals (consecutive relative motions should differ little), with the two
-tracked poses before the window fixed as the motion's anchor. Earlier frames whose pose
-moved are re-placed in the map by their pose source (the mapper holds points in the object
-frame), so the field learns from the refined poses.
+Per-frame tracking fits each frame alone, against the field as it was then, and the pose
+a frame is mapped with carries that fit into the field. The window re-solves the poses of
+the last `frames` tracked frames against the current field, each with a subset of its own
+points and its colour rows (the newest frame with all its rows) and, with a motion weight
+above 0, tied together by constant-velocity motion residuals (consecutive relative motions
+should differ little; the two tracked poses before the window are fixed as the motion's
+anchor). Earlier frames whose pose moved are re-placed in the map by their pose source
+(the mapper holds points in the object frame), so the field learns from the refined poses.
+On the simulated rig it did not lower the pose error (docs/pose.md), so it is off.
 
 Levenberg-Marquardt on one left se(3) increment per frame. The SDF rows' Jacobians are
 [g, q x g] as in pose_tracker.py; the motion residuals' are central differences (six

@@ -9,6 +9,8 @@ from dataclasses import dataclass, field, fields
 
 @dataclass
 class TrackingCounts:
+    """The frames a tracked run kept, retried, re-localised, and its fit and time."""
+
     kept: dict[str, int] = field(default_factory=dict)  # why frames were not tracked, how often
     fit_curve: list[list[float]] = field(default_factory=list)  # [frame, share, conditioning]
     tracked_frames: int = 0
