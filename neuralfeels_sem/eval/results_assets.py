@@ -94,6 +94,13 @@ def accuracy_rows(
     return rows
 
 
+def press_rows(report: dict) -> list[list[str]]:
+    """Accuracy per kind of press and per bend radius of the surface pressed."""
+    return accuracy_rows(report, "per_press_kind", "press") + accuracy_rows(
+        report, "per_curvature", "bend radius", curvature_bin_labels()
+    )
+
+
 def classifier_lines(report: dict, path: Path) -> list[str]:
     rows = [
         [
@@ -103,8 +110,7 @@ def classifier_lines(report: dict, path: Path) -> list[str]:
         ["validation split", number(report, "val_accuracy", 100.0)],
         *accuracy_rows(report, "per_sensor", "sensor"),
         *accuracy_rows(report, "per_class", "class"),
-        *accuracy_rows(report, "per_press_kind", "press"),
-        *accuracy_rows(report, "per_curvature", "bend radius", curvature_bin_labels()),
+        *press_rows(report),
         [
             "touches kept by the gates (share of the test split)",
             number(report, "gated_test.kept_share", 100.0),
@@ -170,8 +176,7 @@ def held_out_lines(report: dict, path: Path) -> list[str]:
             "**all images**",
             number(report, "test_accuracy", 100.0) + f" ({text(report, 'test_count')})",
         ],
-        *accuracy_rows(report, "per_press_kind", "press"),
-        *accuracy_rows(report, "per_curvature", "bend radius", curvature_bin_labels()),
+        *press_rows(report),
         ["touches kept by the gates (share)", number(report, "gated.kept_share", 100.0)],
         ["accuracy on the kept touches", number(report, "gated.accuracy_kept", 100.0)],
     ]

@@ -251,8 +251,9 @@ class TrackedPose(PoseSource):
         for moved, object_T_object in moves.items():
             mapper.move_frame(moved, object_T_object)
             self.colour.repose(moved, object_T_object)
-        if self.history and index - 1 in moves:  # the motion prior's last pose
-            self.history[-1] = self.history[-1] @ invert_pose(moves[index - 1])
+        # The motion prior's last pose is the previous frame's (not index - 1: frames skip).
+        if self.history and self.last_frame.index in moves:
+            self.history[-1] = self.history[-1] @ invert_pose(moves[self.last_frame.index])
         self.counts.track_seconds += time.perf_counter() - start
         return pose
 

@@ -156,3 +156,16 @@ def test_tracked_pose_with_a_window_re_places_earlier_frames(obj, egg_sdf) -> No
     assert metrics["pose_frames_tracked"] == 5 and metrics["pose_window_solves"] == 4
     assert mapper.moved and max(mapper.moved) <= 4
     assert metrics["pose_error_max_mm"] < 0.5
+
+
+def test_the_motion_prior_takes_the_refined_pose_of_the_previous_frame(obj, egg_sdf) -> None:
+    """With frames skipped (realtime pacing maps every other frame here), the previous
+    frame is not index - 1: the motion prior must still take its refined pose."""
+    config = TrackerConfig(rotation_scale=0.03, window=WindowConfig(frames=3))
+    source = TrackedPose("track", obj, PoseTracker(config))
+    mapper = MovingMapper(obj, egg_sdf)
+    for k, truth in enumerate(trajectory(12)):
+        if k % 2 == 0:
+            source.estimate(frame_at(k, truth), mapper)
+    assert mapper.moved and all(index % 2 == 0 for index in mapper.moved)
+    np.testing.assert_allclose(source.history[-2], source.window.frames[-2].pose, atol=1e-12)

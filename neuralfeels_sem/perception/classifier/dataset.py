@@ -240,6 +240,16 @@ def curvature_bins(root: str | Path, paths: list[str]) -> np.ndarray | None:
     return np.asarray([curvature_bin(float("nan") if e is None else float(e)) for e in entries])
 
 
+def press_groups(root: str | Path, paths: list[str]) -> dict[str, np.ndarray]:
+    """Each image's group under every per-image table the manifest has, by report key:
+    `per_press_kind` (press_kinds) and `per_curvature` (curvature_bins)."""
+    groups = {
+        "per_press_kind": press_kinds(root, paths),
+        "per_curvature": curvature_bins(root, paths),
+    }
+    return {key: g for key, g in groups.items() if g is not None}
+
+
 def _per_image(root: str | Path, paths: list[str], key: str) -> list | None:
     """The manifest's `key` entry of each image (None where it lists none), or None when
     the data set's manifest has no such table."""

@@ -102,10 +102,15 @@ def test_report(
 CURVATURE_BINS_MM = ((0.0, 12.0), (12.0, 30.0), (30.0, 80.0), (80.0, float("inf")))
 
 
+def _bin_label(low: float, high: float) -> str:
+    if low == 0:
+        return f"R < {high:g} mm"
+    return f"R {low:g}-{high:g} mm" if np.isfinite(high) else f"R >= {low:g} mm"
+
+
 def curvature_bin_labels() -> list[str]:
     """Every bin's label, tightest bend first (the order reports are read in)."""
-    lows = [low for low, _ in CURVATURE_BINS_MM]
-    return [curvature_bin(1e3 / (low + 1.0)) for low in lows]
+    return [_bin_label(low, high) for low, high in CURVATURE_BINS_MM]
 
 
 def curvature_bin(curvature_per_m: float) -> str:
@@ -113,12 +118,8 @@ def curvature_bin(curvature_per_m: float) -> str:
     if not np.isfinite(curvature_per_m):
         return "unknown"
     radius_mm = 1e3 / curvature_per_m if curvature_per_m > 0 else float("inf")
-    for low, high in CURVATURE_BINS_MM:
-        if radius_mm < high or not np.isfinite(high):
-            if low == 0:
-                return f"R < {high:g} mm"
-            return f"R {low:g}-{high:g} mm" if np.isfinite(high) else f"R >= {low:g} mm"
-    return "unknown"
+    low, high = next(b for b in CURVATURE_BINS_MM if radius_mm < b[1] or np.isinf(b[1]))
+    return _bin_label(low, high)
 
 
 def per_press_kind(y_true: np.ndarray, y_pred: np.ndarray, kinds: np.ndarray) -> dict:

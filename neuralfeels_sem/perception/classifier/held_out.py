@@ -17,11 +17,10 @@ import cv2
 import numpy as np
 
 from neuralfeels_sem.perception.classifier.dataset import (
-    curvature_bins,
     data_summary,
     load_backgrounds,
     load_samples,
-    press_kinds,
+    press_groups,
     scan_dataset,
 )
 from neuralfeels_sem.perception.classifier.evaluate import (
@@ -62,12 +61,8 @@ def evaluate_on_folder(
         report["gated"] = gated_report(
             loaded.labels, probs, shares, classifier.min_confidence, classifier.max_edge_share
         )
-    for key, groups in (
-        ("per_press_kind", press_kinds(root, loaded.paths)),
-        ("per_curvature", curvature_bins(root, loaded.paths)),
-    ):
-        if groups is not None:
-            report[key] = per_press_kind(loaded.labels, pred, groups)
+    for key, groups in press_groups(root, loaded.paths).items():
+        report[key] = per_press_kind(loaded.labels, pred, groups)
     report["val_accuracy"] = ckpt.meta.get("val_accuracy")
     report["checkpoint"] = str(classifier.checkpoint_path)
     report["data"] = data_summary(root, loaded)

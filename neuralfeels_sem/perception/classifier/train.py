@@ -30,11 +30,10 @@ from neuralfeels_sem.perception.classifier.dataset import (
     LoadedSet,
     Sample,
     class_counts,
-    curvature_bins,
     data_summary,
     load_backgrounds,
     load_samples,
-    press_kinds,
+    press_groups,
     resolve_path,
     scan_dataset,
     stratified_split,
@@ -274,12 +273,8 @@ def _report(predict, loaded: LoadedSet, parts: dict, data_root: str, class_names
     test_pred = predict_in_batches(predict, loaded.images[te], 64, "test")
     report = test_report(loaded.labels[te], test_pred, loaded.sensors[te], class_names)
     report["val_accuracy"] = float((val_pred == loaded.labels[va]).mean())
-    for key, groups in (
-        ("per_press_kind", press_kinds(data_root, loaded.paths)),
-        ("per_curvature", curvature_bins(data_root, loaded.paths)),
-    ):
-        if groups is not None:
-            report[key] = per_press_kind(loaded.labels[te], test_pred, groups[te])
+    for key, groups in press_groups(data_root, loaded.paths).items():
+        report[key] = per_press_kind(loaded.labels[te], test_pred, groups[te])
     report["counts"] = {"train": len(parts["train"]), "val": len(va), "test": len(te)}
     report["data"] = {
         **data_summary(data_root, loaded),

@@ -16,6 +16,8 @@ import numpy as np
 import torch
 import torch.nn.functional as F
 
+from neuralfeels_sem.perception.contact import channel_sum
+
 IMAGENET_MEAN = (0.485, 0.456, 0.406)
 IMAGENET_STD = (0.229, 0.224, 0.225)
 
@@ -42,10 +44,8 @@ def contact_crop(
     crop = min(int(crop_px), h, w)
     cy, cx = h / 2.0, w / 2.0
     if background is not None and background.shape == image.shape:
-        change = np.abs(image.astype(np.int16) - background.astype(np.int16))
-        # Channels added one by one (at most 3 x 255, exact in int16): numpy's reduction
-        # over a last axis of three costs ten times as much.
-        diff = change[..., 0] + change[..., 1] + change[..., 2]
+        # int16: three channels of at most 255 each add up exactly
+        diff = channel_sum(np.abs(image.astype(np.int16) - background.astype(np.int16)))
         weight = np.clip(cv2.blur(diff.astype(np.float32), (9, 9)) - threshold, 0.0, None)
         total = float(weight.sum())
         if total > 0:
