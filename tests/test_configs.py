@@ -96,6 +96,7 @@ def test_wrong_type_fails_at_compose() -> None:
         ["mapping.mapper.label_vote_radius=-0.01"],
         ["mapping.mapper.label_vote_min_support=-1"],
         ["mapping.mapper.label_vote_press_gap=-1"],
+        ["mapping.mapper.label_vote_steady_frames=-1"],
         ["mapping.mapper.label_vote_support_radius=-0.01"],
         ["sensor.alternate_axis=[0,0,0]"],
         ["sensor.alternate_every_s=0"],

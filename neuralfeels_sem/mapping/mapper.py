@@ -93,6 +93,9 @@ class MapperConfig:
     label_vote_min_support: int = 1
     label_vote_press_gap: int = 2
     label_vote_support_radius: float | None = 0.04
+    # A press whose own labelled frames name a label steadily (>= steady_frames of them,
+    # at least half) backs that label without a neighbour (label_vote.steady_presses). 0 = off.
+    label_vote_steady_frames: int = 3
     window_recent: int = 4  # keyframes: the most recent ones in every window
     window_by_loss: int = 4  # plus older ones drawn by their last loss
     max_keyframes: int = 200
@@ -147,7 +150,7 @@ class MapperConfig:
             "material_points": 0, "eikonal_points": 0, "space_prior_points": 0,
             "space_prior_resolution": 8, "window_recent": 1, "window_by_loss": 0,
             "max_keyframes": 1, "label_vote_min_neighbours": 1, "label_vote_min_support": 0,
-            "label_vote_press_gap": 0,
+            "label_vote_press_gap": 0, "label_vote_steady_frames": 0,
         }  # fmt: skip
         for name, low in at_least.items():
             if getattr(self, name) < low:

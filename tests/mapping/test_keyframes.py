@@ -6,7 +6,12 @@ import pytest
 import torch
 
 from neuralfeels_sem.mapping.keyframes import KeyframeBuffer
-from neuralfeels_sem.mapping.label_vote import LabelVote, outvoted_touches, press_events
+from neuralfeels_sem.mapping.label_vote import (
+    LabelVote,
+    outvoted_touches,
+    press_events,
+    steady_presses,
+)
 from neuralfeels_sem.mapping.mapper import MapperConfig
 from neuralfeels_sem.mapping.touch_memory import TouchBuffer
 
@@ -15,8 +20,10 @@ CPU = torch.device("cpu")
 
 def vote(**settings) -> LabelVote:
     """The vote's rules one at a time: `settings` (radius=..., ...) over a vote with support,
-    presses and the separate support radius off; the command line's values otherwise."""
-    base = {"min_support": 0, "press_gap": 0, "support_radius": None, **settings}
+    presses, steady presses and the separate support radius off; the command line's values
+    otherwise."""
+    base = {"min_support": 0, "press_gap": 0, "support_radius": None, "steady_frames": 0}
+    base.update(settings)
     return LabelVote.from_config(MapperConfig(**{f"label_vote_{k}": v for k, v in base.items()}))
 
 
@@ -187,3 +194,49 @@ def test_support_is_looked_for_within_its_own_radius() -> None:
         crowd, torch.tensor([0, 2, 2, 2]), 0.01, 3, 0.25, 1, support_radius=0.05
     )
     assert wrong_in_crowd.tolist() == [True, False, False, False]
+
+
+def test_a_steady_press_backs_itself_where_nobody_else_touched() -> None:
+    # One finger presses a small insert nobody else reaches: 4 frames read plastic (0),
+    # far from the fabric (2) presses elsewhere.
+    fingers, frames = ["ring"] * 4 + ["index", "thumb"], [3, 4, 5, 6, 4, 4]
+    c = torch.tensor([[0.1, 0, 0]] * 4 + [[0.0, 0, 0], [0.001, 0, 0]])
+    labels = torch.tensor([0, 0, 0, 0, 2, 2])
+    lone = vote(radius=0.01, min_support=1, press_gap=2)
+    assert lone.outvoted(c, labels, fingers, frames).tolist() == [True] * 4 + [False] * 2
+    steady = vote(radius=0.01, min_support=1, press_gap=2, steady_frames=3)
+    assert not steady.outvoted(c, labels, fingers, frames).any()
+    # Two frames are not steady; nor is a label read in only a minority of the press's frames.
+    brief = steady.outvoted(c[2:], labels[2:], fingers[2:], frames[2:])
+    assert brief.tolist() == [True, True, False, False]
+    mixed = torch.tensor([0, 1, 1, 1, 2, 2])
+    assert steady.outvoted(c, mixed, fingers, frames).tolist() == [True] + [False] * 5
+
+
+def test_steady_presses_count_frames_per_label_of_each_press() -> None:
+    events = torch.tensor([0, 0, 0, 0, 1, 1, 1])
+    labels = torch.tensor([1, 1, 1, 2, 3, 3, 3])
+    frames_per_press = torch.bincount(events)
+    got = steady_presses(events, labels, frames_per_press, 3)
+    assert got.tolist() == [True, True, True, False, True, True, True]
+    # Patch readings: a press across a border reads two materials in every frame (two items
+    # per frame of the same press); each is steady on its own.
+    items = torch.tensor([0, 0, 0, 0, 0, 0])
+    both = steady_presses(items, torch.tensor([1, 2, 1, 2, 1, 2]), torch.tensor([3]), 3)
+    assert both.all()
+    assert steady_presses(events, labels, frames_per_press, 0) is None
+    assert steady_presses(events[:0], labels[:0], frames_per_press, 3) is None
+
+
+def test_a_steady_press_among_disagreeing_neighbours_is_still_outvoted() -> None:
+    crowd = [[0.0, 0, 0], [0.001, 0, 0], [0.0, 0.001, 0]]
+    c = torch.tensor(crowd + [[0.001, 0.001, 0]] * 3)
+    labels = torch.tensor([2, 2, 2, 0, 0, 0])
+    fingers, frames = ["index", "middle", "thumb"] + ["ring"] * 3, [1, 1, 1, 2, 3, 4]
+    steady = vote(radius=0.01, min_neighbours=3, min_support=1, press_gap=2, steady_frames=3)
+    assert steady.outvoted(c, labels, fingers, frames).tolist() == [False] * 3 + [True] * 3
+
+
+def test_steady_frames_must_not_be_negative() -> None:
+    with pytest.raises(ValueError, match="label_vote_steady_frames"):
+        MapperConfig(label_vote_steady_frames=-1)
