@@ -135,16 +135,3 @@ def test_tracker_settings_do_not_make_a_pose_gt_run_another_setting() -> None:
     assert drift({"mapping": {"pose": "gt", **weights}}, {}, today) == {}
     tracked = drift({"mapping": {"pose": "track", **weights}}, {"mapping.pose": "track"}, today)
     assert tracked == {"mapping.tracker.source_weights.tactile": (0.0, 0.5)}
-
-
-def test_runs_before_steady_presses_read_as_steady_frames_0() -> None:
-    mapper = {"label_vote_support_radius": 0.04}
-    today = {
-        "mapping.mapper.label_vote_support_radius": 0.04,
-        "mapping.mapper.label_vote_steady_frames": 3,
-    }
-    assert drift({"mapping": {"mapper": mapper}}, {}, today) == {
-        "mapping.mapper.label_vote_steady_frames": (0, 3)
-    }
-    now = {"mapping": {"mapper": {**mapper, "label_vote_steady_frames": 3}}}
-    assert drift(now, {}, today) == {}
