@@ -75,6 +75,7 @@ class MapMemory:
     ) -> tuple[int, int]:
         """Store one frame's points (PointExtractor.extract); (camera, tactile) points kept."""
         kept = {"camera": 0, "tactile": 0}
+        self.touches.note_frame(frame.index)
         for source, pts in points.items():
             if source == "camera":
                 kept["camera"] += self._add_camera(frame, pts, every_pixel, world_T_object)

@@ -7,6 +7,8 @@ labelled touches the material loss uses.
 
 from __future__ import annotations
 
+import bisect
+
 import torch
 
 from neuralfeels_sem.mapping.keyframes import check_points
@@ -49,9 +51,26 @@ class TouchBuffer:
         self._item_centroid: list[torch.Tensor] = []
         self._fingers: list[str | None] = []  # which finger made each touch (None: unknown)
         self._frames: list[int] = []  # frame index of each touch
+        # Every frame the buffer was offered, ascending: presses are counted in these, so a
+        # press keeps its frames together when realtime pacing maps every other frame.
+        self._mapped: list[int] = []
         self._cat: dict[str, torch.Tensor] | None = None
         self.num_touches = 0
         self.num_labelled = 0
+
+    def note_frame(self, frame_index: int) -> None:
+        """A frame was mapped (with or without touches): press gaps count mapped frames."""
+        i = bisect.bisect_left(self._mapped, frame_index)
+        if i < len(self._mapped) and self._mapped[i] == frame_index:
+            return
+        if i < len(self._mapped):
+            self._cat = None  # an earlier frame: the ranks of later touches move
+        self._mapped.insert(i, int(frame_index))
+
+    def _press_frames(self, touches: list[int]) -> list[int]:
+        """The touches' frames as ranks among the mapped frames (frame indices offline,
+        where every frame is mapped; consecutive at realtime pacing, where frames skip)."""
+        return [bisect.bisect_left(self._mapped, self._frames[t]) for t in touches]
 
     def add(
         self,
@@ -77,6 +96,7 @@ class TouchBuffer:
         self._add_items(len(self._points), points, labels)
         self._fingers.append(finger)
         self._frames.append(int(frame_index))
+        self.note_frame(frame_index)
         self._points.append(points)
         self._axes.append(axis.reshape(1, 3).expand(n, 3).clone())
         self._labels.append(labels)
@@ -164,7 +184,7 @@ class TouchBuffer:
         # frames of a finger must not join presses the vote would count apart.
         labelled, touch = torch.unique(item_touch, return_inverse=True)
         fingers = [self._fingers[t] for t in labelled.tolist()]
-        frames = [self._frames[t] for t in labelled.tolist()]
+        frames = self._press_frames(labelled.tolist())
         centroids = torch.stack(self._item_centroid).to(item_touch.device)
         return self.vote.outvoted(centroids, item_label, fingers, frames, touch)
 
@@ -217,6 +237,7 @@ class TouchBuffer:
             "weights": list(self._weights),
             "fingers": list(self._fingers),
             "frames": list(self._frames),
+            "mapped_frames": list(self._mapped),
             "num_touches": self.num_touches,
             "num_labelled": self.num_labelled,
         }
@@ -236,6 +257,8 @@ class TouchBuffer:
         # Checkpoints from before presses were recorded: every touch a press of its own.
         self._fingers = list(state.get("fingers", [None] * len(self._points)))
         self._frames = [int(f) for f in state.get("frames", [-1] * len(self._points))]
+        # Checkpoints from before mapped frames were recorded: the frames touches came in.
+        self._mapped = [int(f) for f in state.get("mapped_frames", sorted(set(self._frames)))]
         self.num_touches = int(state["num_touches"])
         self.num_labelled = int(state["num_labelled"])
         self._cat = None

@@ -240,3 +240,29 @@ def test_a_steady_press_among_disagreeing_neighbours_is_still_outvoted() -> None
 def test_steady_frames_must_not_be_negative() -> None:
     with pytest.raises(ValueError, match="label_vote_steady_frames"):
         MapperConfig(label_vote_steady_frames=-1)
+
+
+def test_presses_count_mapped_frames_when_realtime_pacing_skips_some() -> None:
+    # One ring press mapped at every third frame (realtime pacing): one press, which no
+    # other press backs; with every frame index counted it would be three that back each other.
+    axis = torch.tensor([0.0, 0.0, 1.0])
+    touches = TouchBuffer(CPU, vote(radius=0.01, min_support=1, press_gap=2))
+    for step, frame in enumerate((10, 13, 16)):
+        touches.note_frame(frame)
+        touches.add(torch.full((4, 3), 0.001 * step), axis, 1, 0.9, "ring", frame)
+    assert touches.num_outvoted == 3
+    # A finger that lifts for two mapped frames starts a new press, which backs the first.
+    for frame in (19, 22):
+        touches.note_frame(frame)
+    touches.note_frame(25)
+    touches.add(torch.full((4, 3), 0.004), axis, 1, 0.9, "ring", 25)
+    assert touches.num_outvoted == 0
+    # The mapped frames travel with the state; an older state falls back to the touches'.
+    state = touches.state_dict()
+    assert state["mapped_frames"] == [10, 13, 16, 19, 22, 25]
+    restored = TouchBuffer(CPU, vote(radius=0.01, min_support=1, press_gap=2))
+    restored.load_state_dict(state)
+    assert restored.num_outvoted == 0
+    older = {k: v for k, v in state.items() if k != "mapped_frames"}
+    restored.load_state_dict(older)
+    assert restored.num_outvoted == 4  # frames 16 and 25 are ranks 2 and 3: one press

@@ -114,6 +114,8 @@ def test_a_geometry_only_touch_does_not_join_two_presses() -> None:
     vote = LabelVote(radius=0.01, min_neighbours=3, min_agreement=0.25, min_support=1,
                      press_gap=4, support_radius=0.04)  # fmt: skip
     touches = TouchBuffer(CPU, vote)
+    for frame in range(7):  # every frame mapped, as at sensor.pace=offline
+        touches.note_frame(frame)
     touches.add(torch.zeros(4, 3), AXIS, 2, 0.9, finger="index", frame_index=0)
     touches.add(torch.zeros(4, 3), AXIS, -1, 0.0, finger="index", frame_index=3)
     touches.add(torch.full((4, 3), 0.002), AXIS, 2, 0.9, finger="index", frame_index=6)
