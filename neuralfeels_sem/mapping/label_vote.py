@@ -21,7 +21,7 @@ class LabelVote:
     """The vote's settings (no defaults here: they are MapperConfig's; see outvoted_touches).
 
     radius 0 switches the vote off; support_radius None means `radius`; press_gap 0 makes
-    every touch a press of its own.
+    every touch a press of its own; steady_frames 0 lets no press back itself.
     """
 
     radius: float
@@ -30,7 +30,7 @@ class LabelVote:
     min_support: int
     press_gap: int
     support_radius: float | None
-    steady_frames: int = 0
+    steady_frames: int
 
     @classmethod
     def from_config(cls, config: MapperConfig) -> LabelVote:
@@ -60,7 +60,8 @@ class LabelVote:
         frames: list[int],
         touch_of: torch.Tensor | None = None,
     ) -> torch.Tensor:
-        """(T,) bool over labelled touches (centroids (T, 3), labels (T,), in frame order).
+        """(T,) bool over labelled touches (centroids (T, 3), labels (T,), in frame order;
+        `frames` numbers the frames the mapper took, see TouchBuffer.note_frame).
 
         With `touch_of` the vote is over items, each one material a touch read (patch
         readings): (I,) centroids and labels of the items and the touch of each; `fingers`

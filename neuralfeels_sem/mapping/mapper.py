@@ -86,7 +86,7 @@ class MapperConfig:
     # within radius metres, fewer than min_agreement of them with its label) is not used
     # for the material loss, nor one backed by fewer than min_support touches with its label
     # within support_radius (null: radius). Touches are counted as presses: a finger's
-    # touches at most press_gap frames apart are one (0: every frame). radius 0 = off.
+    # touches at most press_gap mapped frames apart are one (0: every frame). radius 0 = off.
     label_vote_radius: float = 0.01
     label_vote_min_neighbours: int = 3
     label_vote_min_agreement: float = 0.25
