@@ -42,6 +42,9 @@ class EfficientNetClassifierConfig:
     # material throughout and its other patches are not read (43 % fewer crops on the
     # default run, maps as good: docs/classifier.md). 0: read every patch.
     patch_probe: int = 2
+    # On a GPU: replay the forward from CUDA graphs, one launch per batch instead of a few
+    # hundred (perception/classifier/graphed.py); false runs it eagerly.
+    cuda_graphs: bool = True
 
     def __post_init__(self) -> None:
         if not 0 <= self.patch_spacing_px <= 240:

@@ -29,7 +29,7 @@ from torch import Tensor, nn
 
 from neuralfeels_sem.fields.row_ops import gather_rows
 from neuralfeels_sem.mapping.byte_planes import pack_planes, unpack_planes
-from neuralfeels_sem.mapping.field_init import init_rng_state, initial_state
+from neuralfeels_sem.mapping.field_init import init_rng_state, initial_state, initial_tables
 
 STORAGES = ("auto", "exact", "compact")
 # `auto` stays exact up to this many bytes of tables and moments (the issue's 40 MB target).
@@ -51,14 +51,15 @@ def take(state: dict, field: nn.Module, optimizer: torch.optim.Optimizer, storag
     """The first half of `encode`, on the thread that trains the field: `state` copied
     (the large tables only in their updated rows, as `_pack` stores them), with every
     decision that reads the live field made. `compress` may then run on another thread
-    while training goes on: it reads nothing the optimiser writes."""
+    while training goes on: it reads nothing the optimiser writes. The rows are selected on
+    the field's device, so only the updated ones cross to the CPU here."""
     if storage not in STORAGES:
         raise ValueError(f"checkpoint storage {storage!r}: use one of {STORAGES}")
     tables = _table_parameters(field, optimizer, state["optimizer"]["state"])
     if not tables:
         return copy.deepcopy(state)
-    # initial_state forks torch's global random stream: it must run here, not in a worker.
-    init = initial_state(field)
+    # The first draw forks torch's global random stream: it must run here, not in a worker.
+    init = initial_tables(field, _large_tables(field))
     updated = {name: _updated_rows(state["optimizer"]["state"][i]) for name, i in tables.items()}
     replayed = {
         name: init is not None and _matches_init(state["field"][name], init[name], updated[name])
@@ -75,7 +76,8 @@ def take(state: dict, field: nn.Module, optimizer: torch.optim.Optimizer, storag
     for name, index in tables.items():
         table = packed_field.pop(name)
         moments = packed_optimizer["state"][index]
-        selected[name] = _select(table, moments, updated[name], replayed[name], storage)
+        initial = init[name] if replayed[name] else None
+        selected[name] = _select(table, moments, updated[name], initial, storage)
         selected[name]["param_index"] = index
         for key in ("moments", "exp_avg", "exp_avg_sq"):
             moments.pop(key, None)
@@ -123,6 +125,16 @@ def _table_parameters(field: nn.Module, optimizer, opt_state: dict) -> dict[str,
     return tables
 
 
+def _large_tables(field: nn.Module) -> list[str]:
+    """Names of the parameters that are packed once they have moments (`_table_parameters`),
+    with moments yet or not: their initial values are kept together."""
+    return [
+        name
+        for name, p in field.named_parameters()
+        if p.ndim >= 2 and p.shape[0] >= MIN_PACKED_ROWS
+    ]
+
+
 def _copy_optimizer(optimizer_state: dict) -> dict:
     """A copy deep enough to drop or replace per-parameter state entries."""
     states = {k: dict(v) for k, v in optimizer_state["state"].items()}
@@ -137,25 +149,26 @@ def _moments(state: dict) -> tuple[Tensor, Tensor]:
 
 
 def _updated_rows(state: dict) -> Tensor:
-    """(rows,) bool, on the CPU: rows with any non-zero moment (never updated otherwise)."""
+    """(rows,) bool, on the moments' device: rows with any non-zero moment (never updated
+    otherwise)."""
     if "moments" in state:
         # A row's moments as 64-bit words: a row is updated when any bit is set (a -0.0
         # moment counts too: such a row is stored exactly, which restores it as it is).
-        # On the moments' own device: only the (rows,) result crosses to the CPU.
         pair = state["moments"]
         words = pair.reshape(pair.shape[0], -1).view(torch.int64)
-        return (words != 0).any(dim=1).cpu()
+        return (words != 0).any(dim=1)
     m, v = _moments(state)
-    return ((m != 0) | (v != 0)).reshape(m.shape[0], -1).any(dim=1).cpu()
+    return ((m != 0) | (v != 0)).reshape(m.shape[0], -1).any(dim=1)
 
 
 def _matches_init(table: Tensor, init: Tensor, updated: Tensor) -> bool:
-    """Whether the rows never updated still hold exactly their initial values."""
+    """Whether the rows never updated still hold exactly their initial values (all three
+    on the field's device)."""
     if init.shape != table.shape:
         return False
     # Whole-table comparison, then the mask: a boolean row selection of a 2^24-row table
     # took over 10 s of the training thread; this reads each table once.
-    differs = (table.detach().cpu() != init).reshape(table.shape[0], -1).any(dim=1)
+    differs = (table.detach() != init).reshape(table.shape[0], -1).any(dim=1)
     return not bool((differs & ~updated).any())
 
 
@@ -175,30 +188,46 @@ def _digest(rows: Tensor) -> str:
     return hashlib.sha256(memoryview(rows.contiguous().numpy()).cast("B")).hexdigest()[:16]
 
 
-def _select(table: Tensor, moments: dict, updated: Tensor, replayed: bool, storage: str) -> dict:
-    """Copies of what `_pack` stores of one table: its updated rows and their moments, and
-    its other rows (only their digest when `replayed`)."""
-    table = table.detach().cpu()
-    # Row gathers (each row moved as one word, fields/row_ops.py), not boolean masks:
-    # these run on millions of rows between two optimiser steps.
-    rows, other_rows = updated.nonzero().squeeze(1), (~updated).nonzero().squeeze(1)
+def _select(
+    table: Tensor, moments: dict, updated: Tensor, initial: Tensor | None, storage: str
+) -> dict:
+    """Copies, on the CPU, of what `_pack` stores of one table: its updated rows and their
+    moments, and its other rows, or, where they still hold their `initial` values, only
+    what `compress` needs to hash those (the initial table is never trained: it may be read
+    from another thread)."""
+    table = table.detach()
+    # Row gathers on the table's device (each row moved as one word, fields/row_ops.py),
+    # not boolean masks: these run on millions of rows between two optimiser steps.
+    rows = updated.nonzero().squeeze(1)
     if "moments" in moments:  # one copy of both moments, then the halves
-        pair = gather_rows(moments["moments"].cpu(), rows)
+        pair = gather_rows(moments["moments"], rows).cpu()
         m, v = pair[:, 0], pair[:, 1]
     else:
-        m, v = (t.cpu()[updated] for t in _moments(moments))
-    rest = gather_rows(table, other_rows)
+        m, v = (t[updated].cpu() for t in _moments(moments))
+    rest = None
+    if initial is None:
+        rest = gather_rows(table, (~updated).nonzero().squeeze(1)).cpu()
     return {
         "storage": storage,
         "shape": list(table.shape),
-        "updated": updated.clone(),
+        "updated": updated.cpu(),
         "layout": "moments" if "moments" in moments else "exp_avg",
-        "untouched_digest": _digest(rest),
-        "untouched": None if replayed else rest,
-        "table": gather_rows(table, rows),
+        "initial": initial,
+        "untouched": rest,
+        "table": gather_rows(table, rows).cpu(),
         "m": m,
         "v": v,
     }
+
+
+def _untouched_digest(selected: dict) -> str:
+    """The digest of the rows never updated: of their stored copy, else of their initial
+    values (equal to them: `take` checked)."""
+    if selected["untouched"] is not None:
+        return _digest(selected["untouched"])
+    initial = selected["initial"]
+    other = (~selected["updated"]).nonzero().squeeze(1).to(initial.device)
+    return _digest(gather_rows(initial, other).cpu())
 
 
 def _pack(selected: dict) -> dict:
@@ -206,10 +235,8 @@ def _pack(selected: dict) -> dict:
     storage, m, v = selected["storage"], selected["m"], selected["v"]
     rest = selected["untouched"]
     entry = {
-        **{
-            k: selected[k]
-            for k in ("storage", "shape", "layout", "untouched_digest", "param_index")
-        },
+        **{k: selected[k] for k in ("storage", "shape", "layout", "param_index")},
+        "untouched_digest": _untouched_digest(selected),
         "updated": pack_planes(torch.from_numpy(np.packbits(selected["updated"].numpy()))),
         "untouched": None if rest is None else _narrow(rest, storage),
         "table": _narrow(selected["table"], storage),

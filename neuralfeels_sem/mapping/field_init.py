@@ -31,6 +31,12 @@ class _Recipe:
 
 
 _RECIPES: weakref.WeakKeyDictionary[nn.Module, _Recipe] = weakref.WeakKeyDictionary()
+# Initial values of a field's large tables, drawn once and kept on the field's device: every
+# checkpoint compares the never-updated rows with them (mapping/checkpoint_codec.py), and
+# drawing 133 million rows again per checkpoint cost seconds of the training thread.
+_INITIAL_TABLES: weakref.WeakKeyDictionary[nn.Module, dict[str, Tensor]] = (
+    weakref.WeakKeyDictionary()
+)
 
 
 def build_field(config: SemanticFieldConfig, bound: float) -> SemanticField:
@@ -58,9 +64,25 @@ def initial_state(field: nn.Module, rng_state: Tensor | None = None) -> dict[str
         return recipe.construct().state_dict()
 
 
+def initial_tables(field: nn.Module, names: list[str]) -> dict[str, Tensor] | None:
+    """The initial values of `field`'s state_dict entries `names`, each on its entry's
+    device; drawn on the first call for `field` and kept while it lives (call it first on
+    the thread that owns torch's random stream: the draw forks it). None when `field` was
+    not built by `build_field`."""
+    if field not in _RECIPES:
+        return None
+    kept = _INITIAL_TABLES.get(field)
+    if kept is None or any(name not in kept for name in names):
+        drawn, live = initial_state(field), field.state_dict()
+        kept = {name: drawn[name].to(live[name].device) for name in names}
+        _INITIAL_TABLES[field] = kept
+    return {name: kept[name] for name in names}
+
+
 def adopt_init_state(field: nn.Module, rng_state: Tensor) -> None:
     """After loading a checkpoint: `field` now holds rows initialised from `rng_state` (the
     run that wrote it), so later checkpoints rebuild them from that state."""
     recipe = _RECIPES.get(field)
     if recipe is not None:
         _RECIPES[field] = _Recipe(recipe.construct, rng_state.clone())
+        _INITIAL_TABLES.pop(field, None)

@@ -17,6 +17,7 @@ import torch
 
 from neuralfeels_sem.fields import FieldAdam, SemanticField
 from neuralfeels_sem.fields.semantic_field import SemanticFieldConfig
+from neuralfeels_sem.perception.classifier.graphed import GraphedModel
 from neuralfeels_sem.perception.classifier.infer import MaterialClassifier
 from neuralfeels_sem.perception.tactile_depth_net import DepthNetPredictor
 from tests.helpers import TOY_MAPPING, run_cli
@@ -85,6 +86,45 @@ def test_classifier_on_the_gpu_gives_the_cpu_labels() -> None:
         with torch.inference_mode():
             probs[device] = model(crops.to(clf._device)).softmax(dim=1).cpu()
     torch.testing.assert_close(probs["cuda"], probs["cpu"], rtol=1e-3, atol=1e-4)
+
+
+def test_graph_replays_give_the_eager_outputs_at_every_batch_size() -> None:
+    clf = MaterialClassifier(["plastic", "metal", "fabric", "wood"], device="cuda").open()
+    graphed = clf._model
+    assert isinstance(graphed, GraphedModel)
+    generator = torch.Generator().manual_seed(0)
+    with torch.inference_mode():
+        for batch in (1, 3, 5, 3, 9, 64):  # padded buckets, a bucket replayed again
+            x = torch.rand(batch, 3, 224, 224, generator=generator).cuda()
+            torch.testing.assert_close(graphed(x), graphed.model(x), rtol=1e-4, atol=1e-4)
+    assert sorted(graphed._graphs) == [1, 4, 8, 16, 64]
+
+
+def test_a_capture_while_another_thread_trains_the_field() -> None:
+    import threading
+
+    stop, errors = threading.Event(), []
+
+    def train() -> None:
+        try:
+            while not stop.is_set():
+                _field_after_steps("cuda", steps=2)
+        except Exception as exc:  # noqa: BLE001 - reported by the assert below
+            errors.append(exc)
+
+    worker = threading.Thread(target=train)
+    worker.start()
+    try:
+        clf = MaterialClassifier(["plastic", "metal", "fabric", "wood"], device="cuda").open()
+        with torch.inference_mode():
+            for batch in (1, 2, 5, 12):
+                x = torch.rand(batch, 3, 224, 224, device="cuda")
+                torch.testing.assert_close(clf._model(x), clf._model.model(x), rtol=1e-4, atol=1e-4)
+    finally:
+        stop.set()
+        worker.join()
+    assert not errors, errors
+    assert not clf._model._eager
 
 
 def test_a_map_run_on_the_gpu_scores_as_the_cpu_run(tmp_path) -> None:  # noqa: ANN001

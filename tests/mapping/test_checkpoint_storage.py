@@ -13,6 +13,7 @@ from neuralfeels_sem.fields.hash_grid import HashGridConfig
 from neuralfeels_sem.fields.optim import FieldAdam
 from neuralfeels_sem.fields.semantic_field import SemanticFieldConfig
 from neuralfeels_sem.mapping import checkpoint_codec as codec
+from neuralfeels_sem.mapping import field_init
 from neuralfeels_sem.mapping.byte_planes import pack_planes, packed_bytes, unpack_planes
 from neuralfeels_sem.mapping.checkpoint import load_checkpoint, save_checkpoint
 from neuralfeels_sem.mapping.field_init import build_field
@@ -161,6 +162,36 @@ def test_initial_rows_that_no_longer_replay_are_named(tmp_path) -> None:
     torch.save(payload, path)
     with pytest.warns(UserWarning, match="never-updated rows of encoding.table"):
         load_checkpoint(path, replayable_mapper(init_seed=7))
+
+
+def test_the_initial_rows_are_drawn_once_per_field_and_still_checked(tmp_path, monkeypatch):
+    mapper = replayable_mapper()
+    feed(mapper, FRAMES[:2])
+    drawn = []
+    real_initial_state = field_init.initial_state
+    monkeypatch.setattr(
+        field_init, "initial_state", lambda *a: drawn.append(1) or real_initial_state(*a)
+    )
+    path = tmp_path / "checkpoint.pt"
+    save_checkpoint(path, mapper, frame_index=1)
+    feed(mapper, FRAMES[2:4])
+    save_checkpoint(path, mapper, frame_index=3)
+    assert len(drawn) == 1  # kept from the first checkpoint
+    packed = torch.load(path, weights_only=True)["mapper"][codec.PACKED_KEY][TABLE]
+    assert packed["untouched"] is None  # drawn again on load
+
+    # A never-updated row changed outside the optimiser is noticed at the next checkpoint:
+    # the other rows are then stored as they are.
+    table, moments = _table_state(mapper)
+    never = int(((moments.reshape(moments.shape[0], -1) == 0).all(dim=1)).nonzero()[0])
+    with torch.no_grad():
+        mapper.field.encoding.table[never] += 1.0
+    save_checkpoint(path, mapper, frame_index=3)
+    packed = torch.load(path, weights_only=True)["mapper"][codec.PACKED_KEY][TABLE]
+    assert packed["untouched"] is not None
+    restored = replayable_mapper(init_seed=7)
+    load_checkpoint(path, restored)
+    assert torch.equal(_table_state(restored)[0], _table_state(mapper)[0])
 
 
 def test_moment_codes_keep_tiny_moments_that_float16_loses() -> None:

@@ -22,6 +22,7 @@ import torch
 from neuralfeels_sem.core.errors import ConfigError, DataError
 from neuralfeels_sem.core.frame import TactileReading
 from neuralfeels_sem.perception.classifier.checkpoint import ClassifierCheckpoint, load_checkpoint
+from neuralfeels_sem.perception.classifier.graphed import GraphedModel
 from neuralfeels_sem.perception.classifier.model import build_model, fold_batch_norms
 from neuralfeels_sem.perception.classifier.patches import crop_around, patch_centres, pixel_labels
 from neuralfeels_sem.perception.classifier.predict import predict_probs
@@ -56,6 +57,7 @@ class MaterialClassifier:
         (`new_model()`) and its inputs; a loaded checkpoint carries its own input size and crop.
     patch_spacing_px, max_patches, patch_probe: patch readings across the imprint
         (perception/classifier/patches.py; `_read_patches`); spacing 0 = off.
+    cuda_graphs: on a GPU, replay the forward from CUDA graphs (perception/classifier/graphed.py).
     """
 
     def __init__(
@@ -77,6 +79,7 @@ class MaterialClassifier:
         patch_spacing_px: int = 0,
         max_patches: int = 8,
         patch_probe: int = 0,
+        cuda_graphs: bool = True,
     ) -> None:
         if not 0.0 <= min_confidence <= 1.0:
             raise ValueError(f"min_confidence={min_confidence} must be in [0, 1]")
@@ -105,6 +108,7 @@ class MaterialClassifier:
         if patch_probe < 0:
             raise ValueError(f"patch_probe={patch_probe} must be >= 0 (0: read every patch)")
         self.patch_probe = int(patch_probe)
+        self.cuda_graphs = bool(cuda_graphs)
         self._backgrounds: dict[str, np.ndarray] = {}
         self._model: torch.nn.Module | None = None
         self._ckpt: ClassifierCheckpoint | None = None
@@ -144,7 +148,10 @@ class MaterialClassifier:
                 "set materials to match or train a classifier for these classes"
             )
         self._device = resolve_device(self.device_name)
-        self._model = fold_batch_norms(ckpt.build(self._device))  # inference only here
+        model = fold_batch_norms(ckpt.build(self._device))  # inference only here
+        if self.cuda_graphs and self._device.type == "cuda":
+            model = GraphedModel(model.eval())
+        self._model = model
         self._ckpt = ckpt
         if self.background_dir is not None:
             self._load_backgrounds()

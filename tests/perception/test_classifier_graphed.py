@@ -1,0 +1,32 @@
+"""GraphedModel (perception/classifier/graphed.py) off the GPU: bucket sizes, bad input, and
+CPU inputs passed to the model as they are. The replay itself is checked against the eager
+forward in tests/gpu/test_gpu_paths.py."""
+
+from __future__ import annotations
+
+import pytest
+import torch
+from torch import nn
+
+from neuralfeels_sem.perception.classifier.graphed import BUCKETS, GraphedModel, bucket
+
+
+def test_a_batch_goes_to_the_smallest_bucket_that_holds_it() -> None:
+    assert [bucket(n) for n in (1, 2, 3, 5, 8, 9, 33, 64)] == [1, 2, 4, 8, 8, 16, 64, 64]
+    assert bucket(BUCKETS[-1] + 1) is None  # run eagerly
+    with pytest.raises(ValueError, match="at least one"):
+        bucket(0)
+
+
+def test_a_model_in_training_mode_is_refused() -> None:
+    with pytest.raises(ValueError, match="eval mode"):
+        GraphedModel(nn.Linear(3, 2).train())
+
+
+def test_cpu_inputs_run_the_model_as_it_is() -> None:
+    torch.manual_seed(0)
+    model = nn.Sequential(nn.Linear(3, 4), nn.SiLU(), nn.Linear(4, 2)).eval()
+    x = torch.randn(5, 3)
+    graphed = GraphedModel(model)
+    assert torch.equal(graphed(x), model(x))
+    assert graphed.training is False
