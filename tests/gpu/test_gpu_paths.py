@@ -28,6 +28,9 @@ pytestmark = [
 ]
 RUN_TOLERANCE_PCT = 5.0
 RUN_TOLERANCE_FSCORE = 0.05
+# Graph replay vs eager logits: a padded bucket runs cuDNN's kernels for another batch size,
+# with TF32 convolutions; seen on an H100: up to 4.4e-4 relative on logits of about 45.
+GRAPH_RTOL, GRAPH_ATOL = 2e-3, 1e-3
 
 
 def _field_after_steps(device: str, steps: int = 5) -> dict[str, torch.Tensor]:
@@ -96,7 +99,9 @@ def test_graph_replays_give_the_eager_outputs_at_every_batch_size() -> None:
     with torch.inference_mode():
         for batch in (1, 3, 5, 3, 9, 64):  # padded buckets, a bucket replayed again
             x = torch.rand(batch, 3, 224, 224, generator=generator).cuda()
-            torch.testing.assert_close(graphed(x), graphed.model(x), rtol=1e-4, atol=1e-4)
+            torch.testing.assert_close(
+                graphed(x), graphed.model(x), rtol=GRAPH_RTOL, atol=GRAPH_ATOL
+            )
     assert sorted(graphed._graphs) == [1, 4, 8, 16, 64]
 
 
@@ -119,7 +124,9 @@ def test_a_capture_while_another_thread_trains_the_field() -> None:
         with torch.inference_mode():
             for batch in (1, 2, 5, 12):
                 x = torch.rand(batch, 3, 224, 224, device="cuda")
-                torch.testing.assert_close(clf._model(x), clf._model.model(x), rtol=1e-4, atol=1e-4)
+                torch.testing.assert_close(
+                    clf._model(x), clf._model.model(x), rtol=GRAPH_RTOL, atol=GRAPH_ATOL
+                )
     finally:
         stop.set()
         worker.join()
