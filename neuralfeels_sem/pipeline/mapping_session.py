@@ -197,6 +197,7 @@ class MappingSession:
         bar = tqdm(total=total, desc="map", unit="frame", dynamic_ncols=True)
         bar.update(self.last_index + 1)
         self.background = BackgroundEval(self.scorer, self._write_snapshot)
+        cpu_start = time.thread_time()
         producer.start()
         try:
             while not self.stop.requested:
@@ -215,6 +216,8 @@ class MappingSession:
                 self._map(item, realtime, total, snapshot_every, wall_start, bar)
         finally:
             producer.stop()
+            self.segment.mapper_cpu_s = time.thread_time() - cpu_start
+            self.segment.producer_cpu_s = producer.cpu_s
             self._close_background(bar)
             bar.close()
 

@@ -14,6 +14,7 @@ from __future__ import annotations
 
 import logging
 import threading
+import time
 from collections.abc import Callable, Iterator
 
 from neuralfeels_sem.core.frame import Frame
@@ -57,6 +58,7 @@ class FrameProducer:
         self.queue = FrameQueue(capacity, keep_newest=self.realtime, on_drop=forget)
         self.clock: PaceClock | None = None
         self._stop = threading.Event()
+        self.cpu_s = 0.0  # the thread's CPU seconds, set when it ends
         self._thread = threading.Thread(target=self._run, name="frame-producer", daemon=True)
 
     def start(self) -> None:
@@ -86,6 +88,13 @@ class FrameProducer:
         return self.clock.due_index()
 
     def _run(self) -> None:
+        cpu_start = time.thread_time()
+        try:
+            self._produce()
+        finally:
+            self.cpu_s = time.thread_time() - cpu_start
+
+    def _produce(self) -> None:
         dropped, expected, first = 0, self.after_index + 1, True
         try:
             for frame in self._frames():

@@ -152,7 +152,18 @@ def summary_rows(metrics: dict) -> list[tuple[str, str, str, str]]:
         ("classifier acc. (all touches)", _share(acc.get("accuracy_all_touches")), "", ""),
         ("frames / wall time", f"{metrics['frames']} / {metrics['wall_s']:.0f} s", "", ""),
         ("realtime factor", _fmt(metrics.get("realtime_factor"), ".2f"), "", ""),
+        ("busy: producer / mapper", _busy(metrics), "", ""),
     ]
+
+
+def _busy(metrics: dict) -> str:
+    """The two threads' CPU time as shares of the loop's wall time: the one near 100 %
+    bounds the realtime factor."""
+    wall = metrics.get("wall_s") or 0.0
+    producer, mapper = metrics.get("producer_cpu_s"), metrics.get("mapper_cpu_s")
+    if wall <= 0 or producer is None or mapper is None:
+        return "n/a"
+    return f"{_share(producer / wall)} / {_share(mapper / wall)}"
 
 
 def print_summary(metrics: dict, out: Path) -> None:

@@ -13,7 +13,7 @@ from neuralfeels_sem.configs.sensor_real import RealSensorConfig, ReplaySensorCo
 from neuralfeels_sem.configs.sensor_sim import SimSensorConfig
 from neuralfeels_sem.core.frame import Frame
 from neuralfeels_sem.pipeline.pace import FrameQueue, PaceClock, PerceivedFrame, StreamEnd
-from neuralfeels_sem.pipeline.segments import Segment, run_totals
+from neuralfeels_sem.pipeline.segments import Segment, load_segments, run_totals
 from neuralfeels_sem.sensors.base import Sensor
 
 
@@ -86,6 +86,16 @@ def test_lag_and_drops_add_up_over_segments() -> None:
     assert totals["frames_dropped"] == 4
     assert totals["lag_max_s"] == 0.9 and totals["lag_mean_s"] == pytest.approx(0.5)
     assert run_totals([Segment()], 0.1)["lag_max_s"] is None
+
+
+def test_thread_cpu_adds_up_over_segments() -> None:
+    first = Segment(producer_cpu_s=2.0, mapper_cpu_s=1.0)
+    second = Segment(producer_cpu_s=0.5, mapper_cpu_s=3.0)
+    totals = run_totals([first, second], 0.1)
+    assert totals["producer_cpu_s"] == 2.5 and totals["mapper_cpu_s"] == 4.0
+    # A checkpoint written before these fields existed still loads (both 0).
+    old = {k: v for k, v in Segment().to_dict().items() if not k.endswith("_cpu_s")}
+    assert load_segments([old])[0].producer_cpu_s == 0.0
 
 
 def test_pace_defaults_and_range_checks() -> None:

@@ -105,6 +105,10 @@ def test_offline_pipeline_gives_the_sequential_loops_figures(tmp_path) -> None:
     assert got["pace"] == "offline" and got["frames_dropped"] == 0
     assert got["lag_max_s"] is None and got["idle_steps"] == 0
     assert metrics["frames"] == 6 and got["trained_on"]["frames"] == 6
+    # Each thread's CPU time: some, and no more than the loop's wall time (one thread each;
+    # the producer starts with the loop and is joined at its end).
+    for key in ("producer_cpu_s", "mapper_cpu_s"):
+        assert 0.0 < got[key] <= got["wall_s"] + 0.5, (key, got[key], got["wall_s"])
     for key in SAME_PERCEPTION:  # segmentation_ms_mean is a timing
         assert got["perception"][key] == expected["perception"][key], key
     for key in SAME_FIGURES:

@@ -1,0 +1,15 @@
+"""The terminal summary's busy row: each thread's CPU time as a share of the loop's wall time."""
+
+from __future__ import annotations
+
+from neuralfeels_sem.viz.run_report import _busy
+
+
+def test_busy_shares_name_the_thread_that_bounds_the_loop() -> None:
+    metrics = {"wall_s": 10.0, "producer_cpu_s": 9.5, "mapper_cpu_s": 4.0}
+    assert _busy(metrics) == "95.0% / 40.0%"
+
+
+def test_runs_without_thread_times_show_none() -> None:
+    assert _busy({"wall_s": 10.0}) == "n/a"  # a metrics.json from before the fields
+    assert _busy({"wall_s": 0.0, "producer_cpu_s": 1.0, "mapper_cpu_s": 1.0}) == "n/a"
