@@ -1,22 +1,22 @@
 """One mapping run over an opened sensor: the frame loop behind `task=map`.
 
-A producer thread (producer.py) acquires or renders each frame, classifies its touches
-and runs the perception that needs no field (camera segmentation, tactile depth); this
-side, the mapper's, takes its frames from a bounded queue: logs the touches, estimates the
-object pose, adds the frame to the mapper (which trains the field) and tells the
-observers. At sensor.pace=offline every frame is mapped, in order, as by a sequential
-loop; at realtime the frames come at the sensor's clock, the mapper takes the newest one,
-drops any due more than `max_lag_s` ago and counts them (pace.py), and runs single steps
-while no new frame has come. Every `every_k_frames` frames (and on the last) the field is
-scored and every len/`progression_snapshots` frames a progression snapshot is written, on a
-copy of the field by a worker thread (background_eval.py); every `checkpoint_every` frames
-the mapper's state is copied here, between steps, and written by another worker
-(checkpoint_writer.py). So the mapper's thread only pays for the copies. A run resumed from a checkpoint skips the frames it already holds and continues
-where it stopped, with the scorer's curve, the pose source's state and the earlier
-segments' frame counts and wall times restored. SIGINT or SIGTERM stops the loop after
-the frame in progress (the result is then marked partial); a producer that fails ends
-the loop the same way and `failure` holds its error. At the end: the final checkpoint,
-the final scores and the coloured mesh. Every file is written atomically.
+A producer thread (producer.py) acquires or renders each frame, classifies its touches and runs
+the perception that needs no field (camera segmentation, tactile depth); this side, the
+mapper's, takes its frames from a bounded queue: logs the touches, estimates the object pose,
+adds the frame to the mapper (which trains the field) and tells the observers. At
+sensor.pace=offline every frame is mapped, in order, as by a sequential loop; at realtime the
+frames come at the sensor's clock, the mapper takes the newest one, drops any due more than
+`max_lag_s` ago and counts them (pace.py), and runs single steps while no new frame has come.
+Every `every_k_frames` frames (and on the last) the field is scored and every
+len/`progression_snapshots` frames a progression snapshot is written, on a copy of the field by
+a worker thread (background_eval.py); every `checkpoint_every` frames the mapper's state is
+copied here, between steps, and written by another worker (checkpoint_writer.py), so the
+mapper's thread only pays for the copies. A run resumed from a checkpoint skips the frames it
+already holds and continues where it stopped, with the scorer's curve, the pose source's state
+and the earlier segments' frame counts and wall times restored. SIGINT or SIGTERM stops the loop
+after the frame in progress (the result is then marked partial); a producer that fails ends the
+loop the same way and `failure` holds its error. At the end: the final checkpoint, the final
+scores and the coloured mesh. Every file is written atomically.
 """
 
 from __future__ import annotations
@@ -127,13 +127,14 @@ class MappingSession:
         self.writer = CheckpointWriter(self.checkpoint_path)
         try:
             with self.stop:
-                wall_start = time.perf_counter()
+                wall_start, cpu_start = time.perf_counter(), time.thread_time()
                 try:
                     self._loop(sensor, wall_start)
                 finally:
                     for observer in self.observers:
                         observer.close()
                 self.segment.wall_s = time.perf_counter() - wall_start
+                self.segment.mapper_cpu_s = time.thread_time() - cpu_start
                 self.segment.partial = self.stop.requested or self.failure is not None
                 scores = self._finish(baseline)
         finally:
@@ -197,7 +198,6 @@ class MappingSession:
         bar = tqdm(total=total, desc="map", unit="frame", dynamic_ncols=True)
         bar.update(self.last_index + 1)
         self.background = BackgroundEval(self.scorer, self._write_snapshot)
-        cpu_start = time.thread_time()
         producer.start()
         try:
             while not self.stop.requested:
@@ -216,7 +216,6 @@ class MappingSession:
                 self._map(item, realtime, total, snapshot_every, wall_start, bar)
         finally:
             producer.stop()
-            self.segment.mapper_cpu_s = time.thread_time() - cpu_start
             self.segment.producer_cpu_s = producer.cpu_s
             self._close_background(bar)
             bar.close()
