@@ -118,6 +118,9 @@ def _default_run(*overrides: str) -> dict:
         "realtime_factor": round(metrics["realtime_factor"], 3),
         "meets_realtime_target": metrics["realtime_factor"] >= REALTIME_TARGET,
         "loop_wall_s": round(metrics["wall_s"], 1),
+        # Shares of the loop each thread was busy: the one near 1 bounds the factor.
+        "producer_busy": _busy(metrics, "producer_cpu_s"),
+        "mapper_busy": _busy(metrics, "mapper_cpu_s"),
         "process_wall_s": round(process_s, 1),
         "optimizer_steps": metrics["trained_on"]["optimizer_steps"],
         "matching_mean_class_pct": metrics["matching_mean_class_pct"],
@@ -127,6 +130,11 @@ def _default_run(*overrides: str) -> dict:
         "threads": metrics.get("machine", {}).get("torch_threads"),
         "load_avg_1min_at_end": (metrics.get("load_avg") or [None])[0],
     }
+
+
+def _busy(metrics: dict, key: str) -> float | None:
+    cpu_s, wall_s = metrics.get(key), metrics.get("wall_s") or 0.0
+    return None if cpu_s is None or wall_s <= 0 else round(cpu_s / wall_s, 3)
 
 
 def _repeated_default_run(repeats: int) -> dict:

@@ -112,6 +112,8 @@ FIGURES: tuple[tuple[str, str, str, str], ...] = (
     ),
     ("mapper", "default_run.realtime_factor_min", "default run: lowest of the repeats", "x"),
     ("mapper", "default_run.realtime_factor_max", "default run: highest of the repeats", "x"),
+    ("mapper", "default_run.producer_busy", "default run: producer thread busy (of the loop)", "x"),
+    ("mapper", "default_run.mapper_busy", "default run: mapper thread busy (of the loop)", "x"),
     ("mapper", "default_run.matching_mean_class_pct", "default run: mean-class matching", "%"),
     (
         "mapper",
@@ -130,6 +132,12 @@ FIGURES: tuple[tuple[str, str, str, str], ...] = (
         "default_run_cuda_log2_24.matching_mean_class_pct",
         "default run on the GPU, 2^24 table: mean-class matching",
         "%",
+    ),
+    (
+        "mapper",
+        "default_run_cuda_log2_24.producer_busy",
+        "default run on the GPU, 2^24 table: producer thread busy",
+        "x",
     ),
     ("mapper", "frame_points_ms", "mapper frame points (perception)", "ms/frame"),
     ("mapper", "add_frame_per_s", "mapper frames (points + steps)", "frames/s"),

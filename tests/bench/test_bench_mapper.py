@@ -28,3 +28,10 @@ def test_the_median_run_is_reported_with_every_factor(monkeypatch: pytest.Monkey
 def test_a_failed_repeat_is_reported_instead_of_a_median(monkeypatch: pytest.MonkeyPatch) -> None:
     _fake_runs(monkeypatch, [{"realtime_factor": 0.5}, {"error": "exit 2: bad config"}])
     assert bench_mapper._repeated_default_run(2) == {"error": "exit 2: bad config"}
+
+
+def test_the_busy_shares_come_from_the_threads_cpu_time() -> None:
+    metrics = {"wall_s": 40.0, "producer_cpu_s": 32.0, "mapper_cpu_s": 31.3}
+    assert bench_mapper._busy(metrics, "producer_cpu_s") == 0.8
+    assert bench_mapper._busy(metrics, "mapper_cpu_s") == 0.782
+    assert bench_mapper._busy({"wall_s": 40.0}, "mapper_cpu_s") is None  # an older run
