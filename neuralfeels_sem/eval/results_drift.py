@@ -98,10 +98,12 @@ def compared(key: str, flat: dict[str, Any] | None = None) -> bool:
 # recorded when it was added, the value runs that recorded that key but not this one ran
 # with)}. classifier.patch_probe came with 0 (every patch read); the default became 2.
 # mapping.tracker.max_points_per_finger came with 1000 (the camera's cap, which applied to
-# every source before); the default became 200.
+# every source before); the default became 200. mapping.mapper.label_vote_steady_frames
+# came with 0 (no press backs itself); the default became 3.
 ADDED_SINCE: dict[str, tuple[str, Any]] = {
     "classifier.patch_probe": ("classifier.max_patches", 0),
     "mapping.tracker.max_points_per_finger": ("mapping.tracker.max_points_per_source", 1000),
+    "mapping.mapper.label_vote_steady_frames": ("mapping.mapper.label_vote_press_gap", 0),
 }
 
 

@@ -175,7 +175,7 @@ COMPARISON_HEADER = [
 
 
 def comparison_table(settings: dict[str, list[Run]]) -> list[str]:
-    """One row per setting over the object seeds every setting ran."""
+    """One row per setting over the object seeds every setting ran (at least one)."""
     common = set.intersection(*(set(by_object(rs)) for rs in settings.values()))
     rows = []
     for label, runs in settings.items():
@@ -223,15 +223,35 @@ INTRO = [
 ]
 
 
+def comparisons_with_defaults(settings: dict[str, list[Run]]) -> list[str]:
+    """One comparison per set of objects that settings share with today's defaults (the
+    defaults and each setting that ran those objects), largest first; without a
+    default-config run, one comparison over the objects every setting ran."""
+    default = next((k for k, runs in settings.items() if not setting_rest(runs[0])), None)
+    if default is None:
+        return comparison_table(settings) + [""]
+    default_seeds = set(by_object(settings[default]))
+    groups: dict[frozenset[int], dict[str, list[Run]]] = {}
+    for label, runs in settings.items():
+        common = frozenset(default_seeds & set(by_object(runs)))
+        if label != default and common:
+            groups.setdefault(common, {default: settings[default]})[label] = runs
+    lines = []
+    for common in sorted(groups, key=lambda seeds: (-len(seeds), sorted(seeds))):
+        lines += comparison_table(groups[common]) + [""]
+    return lines
+
+
 def development_tables(runs: Sequence[Run]) -> list[str]:
-    """Every source's development runs together: one comparison of the settings over the
-    objects they all ran, then the objects of today's defaults (when they ran)."""
+    """Every source's development runs together: the settings compared with today's
+    defaults on the objects both ran, then the objects of today's defaults (when they
+    ran)."""
     settings: dict[str, list[Run]] = {}
     for run in runs:
         settings.setdefault(setting_text(run), []).append(run)
     lines = ["### Development objects, every source", ""]
     if len(settings) > 1:
-        lines += comparison_table(settings) + [""]
+        lines += comparisons_with_defaults(settings)
     default = [members for members in settings.values() if not setting_rest(members[0])]
     for members in default or list(settings.values())[:1]:
         lines += setting_table(members) + [""]

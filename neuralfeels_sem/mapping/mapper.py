@@ -94,10 +94,10 @@ class MapperConfig:
     label_vote_press_gap: int = 2
     label_vote_support_radius: float | None = 0.04
     # A press whose own labelled frames name a label steadily (>= steady_frames of them,
-    # at least half) backs that label without a neighbour (label_vote.steady_presses). 0 =
-    # off, the default: at 3 it rescued an insert on one development object and cost a
-    # little on most others (docs/field_and_mapper.md).
-    label_vote_steady_frames: int = 0
+    # at least half) backs that label without a neighbour (label_vote.steady_presses);
+    # 0 = off. 3: on 29 development objects it keeps the one press that is all a small
+    # part gets, at a small cost on the shipped objects (docs/field_and_mapper.md).
+    label_vote_steady_frames: int = 3
     window_recent: int = 4  # keyframes: the most recent ones in every window
     window_by_loss: int = 4  # plus older ones drawn by their last loss
     max_keyframes: int = 200

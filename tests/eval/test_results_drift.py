@@ -112,6 +112,12 @@ def test_a_setting_added_since_reads_as_the_value_runs_before_it_had() -> None:
     assert drift({"classifier": {"max_patches": 8, "patch_probe": 2}}, {}, today) == {}
     # Without the key it came beside (another classifier, a partial record): skipped.
     assert drift({"classifier": {"_target_": "x"}}, {}, today) == {}
+    # Steady presses came off (0) and became 3: a run from before reads as 0.
+    mapper = {"label_vote_press_gap": 2}
+    today = {"mapping.mapper.label_vote_press_gap": 2, "mapping.mapper.label_vote_steady_frames": 3}
+    assert drift({"mapping": {"mapper": mapper}}, {}, today) == {
+        "mapping.mapper.label_vote_steady_frames": (0, 3)
+    }
 
 
 def test_the_per_finger_cap_reads_as_the_camera_cap_runs_before_it_had() -> None:

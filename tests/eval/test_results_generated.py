@@ -82,6 +82,22 @@ def test_development_objects_of_several_sweeps_are_compared_together(tmp_path: P
     assert "multirun/dev_b`" in part and "evaluation objects. Mean-class" in part
 
 
+def test_settings_on_other_objects_are_each_compared_with_the_defaults(tmp_path: Path) -> None:
+    """Two settings with no object in common: each gets a comparison with today's defaults
+    on the objects it shares with them, not one comparison over nothing."""
+    sweep = tmp_path / "multirun" / "dev"
+    k = write_generated(sweep, {1: 80.0, 2: 60.0, 3: 99.0, 4: 70.0}, [])
+    k = write_generated(sweep, {1: 90.0, 2: 70.0, 3: 95.0}, ["sensor.policy=active"], k)
+    write_generated(sweep, {4: 75.0}, ["mapping.mapper.label_vote_radius=0.02"], k)
+    part = section(generate(tmp_path, sweep), "Generated objects")
+    assert "n/a" not in part
+    first = part.index("Pooled on object seeds 1, 2, 3 (every setting ran them).")
+    second = part.index("Pooled on object seeds 4 (every setting ran them).")
+    assert first < second  # the larger set first
+    defaults = [c for c in part.splitlines() if c.startswith("| today's defaults")]
+    assert [row.split(" | ")[1] for row in defaults] == ["80.0, 60.0, 99.0", "70.0"]
+
+
 def test_tracked_runs_on_generated_objects_go_to_the_pose_section(tmp_path: Path) -> None:
     """Beside the `pose=gt` run of the same object from another sweep; they are not a
     setting of the development comparison (which would shrink it to the objects they ran)."""
