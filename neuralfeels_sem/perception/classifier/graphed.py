@@ -2,7 +2,7 @@
 
 EfficientNet-B0's forward is a few hundred small kernels, each launched from Python. On an
 H100 (a default run's profile, issue 22) a call cost 68 ms of CPU, more than the same
-forward on that machine's CPU (37 ms), and the frame producer spent most of its time
+forward on that machine's CPU (37 ms), and the frame producer spent about half its time
 there. A CUDA graph records the launches once and replays them with one call. Batches are
 padded up to the next of BUCKETS, so a handful of graphs serve every batch size: in
 inference, with the batch norms folded (model.fold_batch_norms), a sample's output does
