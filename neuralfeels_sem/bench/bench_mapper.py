@@ -39,6 +39,7 @@ from neuralfeels_sem.mapping.mapper import MapperConfig, OnlineMapper
 from neuralfeels_sem.mapping.sphere_scene import sphere_frames
 from neuralfeels_sem.utils.device import resolve_device, resolve_threads
 from neuralfeels_sem.utils.paths import REPO_DIR
+from neuralfeels_sem.viz.run_report import busy_share
 
 TIMED_STEPS = 20
 DEFAULT_RUN_TIMEOUT_S = 900
@@ -133,8 +134,8 @@ def _default_run(*overrides: str) -> dict:
 
 
 def _busy(metrics: dict, key: str) -> float | None:
-    cpu_s, wall_s = metrics.get(key), metrics.get("wall_s") or 0.0
-    return None if cpu_s is None or wall_s <= 0 else round(cpu_s / wall_s, 3)
+    share = busy_share(metrics, key)
+    return None if share is None else round(share, 3)
 
 
 def _repeated_default_run(repeats: int) -> dict:

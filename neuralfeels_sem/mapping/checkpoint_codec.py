@@ -120,19 +120,20 @@ def _table_parameters(field: nn.Module, optimizer, opt_state: dict) -> dict[str,
     for index, p in enumerate(ordered):
         state = opt_state.get(index, {})
         has_moments = "moments" in state or "exp_avg_sq" in state
-        if has_moments and p.ndim >= 2 and p.shape[0] >= MIN_PACKED_ROWS and id(p) in names:
+        if has_moments and _is_table(p) and id(p) in names:
             tables[names[id(p)]] = index
     return tables
 
 
+def _is_table(p: Tensor) -> bool:
+    """A parameter packed once it has moments: a hash table, not an MLP's weight."""
+    return p.ndim >= 2 and p.shape[0] >= MIN_PACKED_ROWS
+
+
 def _large_tables(field: nn.Module) -> list[str]:
-    """Names of the parameters that are packed once they have moments (`_table_parameters`),
-    with moments yet or not: their initial values are kept together."""
-    return [
-        name
-        for name, p in field.named_parameters()
-        if p.ndim >= 2 and p.shape[0] >= MIN_PACKED_ROWS
-    ]
+    """Names of the field's tables (`_is_table`), with moments yet or not: their initial
+    values are kept together."""
+    return [name for name, p in field.named_parameters() if _is_table(p)]
 
 
 def _copy_optimizer(optimizer_state: dict) -> dict:

@@ -156,14 +156,18 @@ def summary_rows(metrics: dict) -> list[tuple[str, str, str, str]]:
     ]
 
 
+def busy_share(metrics: dict, key: str) -> float | None:
+    """A thread's CPU time (`producer_cpu_s` or `mapper_cpu_s`) as a share of the loop's
+    wall time: the thread near 1 bounds the realtime factor. None for a run without it."""
+    cpu_s, wall_s = metrics.get(key), metrics.get("wall_s") or 0.0
+    return None if cpu_s is None or wall_s <= 0 else cpu_s / wall_s
+
+
 def _busy(metrics: dict) -> str:
-    """The two threads' CPU time as shares of the loop's wall time: the one near 100 %
-    bounds the realtime factor."""
-    wall = metrics.get("wall_s") or 0.0
-    producer, mapper = metrics.get("producer_cpu_s"), metrics.get("mapper_cpu_s")
-    if wall <= 0 or producer is None or mapper is None:
+    producer, mapper = (busy_share(metrics, k) for k in ("producer_cpu_s", "mapper_cpu_s"))
+    if producer is None or mapper is None:
         return "n/a"
-    return f"{_share(producer / wall)} / {_share(mapper / wall)}"
+    return f"{_share(producer)} / {_share(mapper)}"
 
 
 def print_summary(metrics: dict, out: Path) -> None:

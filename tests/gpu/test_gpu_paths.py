@@ -10,6 +10,7 @@ added in another order, 5 points of mean-class matching and 0.05 of F-score.
 from __future__ import annotations
 
 import json
+import threading
 
 import numpy as np
 import pytest
@@ -106,8 +107,6 @@ def test_graph_replays_give_the_eager_outputs_at_every_batch_size() -> None:
 
 
 def test_a_capture_while_another_thread_trains_the_field() -> None:
-    import threading
-
     stop, errors = threading.Event(), []
 
     def train() -> None:

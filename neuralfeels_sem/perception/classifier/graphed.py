@@ -56,7 +56,7 @@ class GraphedModel:
         graph.replay()
         return static_out[: x.shape[0]].clone()  # the next replay overwrites static_out
 
-    def _capture(self, size: int, like: Tensor):
+    def _capture(self, size: int, like: Tensor) -> tuple | None:
         static_in = torch.zeros((size, *like.shape[1:]), dtype=like.dtype, device=like.device)
         try:
             if self._pool is None:

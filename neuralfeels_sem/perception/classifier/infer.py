@@ -150,7 +150,7 @@ class MaterialClassifier:
         self._device = resolve_device(self.device_name)
         model = fold_batch_norms(ckpt.build(self._device))  # inference only here
         if self.cuda_graphs and self._device.type == "cuda":
-            model = GraphedModel(model.eval())
+            model = GraphedModel(model)
         self._model = model
         self._ckpt = ckpt
         if self.background_dir is not None:
