@@ -39,7 +39,8 @@ def touch_set(mapper) -> TouchSet:
     labels = np.array(state["touch_labels"], dtype=np.int64)
     used = (labels >= 0) & ~buffer.outvoted().cpu().numpy()
     points = [p.cpu().numpy().astype(np.float64) for p in state["points"]]
-    return TouchSet(points, labels, used, point_labels)
+    used_labels = [t.cpu().numpy().astype(np.int64) for t in buffer.point_labels_used()]
+    return TouchSet(points, labels, used, point_labels, used_labels)
 
 
 def run_errors(run_dir: Path) -> dict:
@@ -75,7 +76,7 @@ def nearest_press_map(matching: MatchingEvaluator, touches: TouchSet) -> float |
     used = [
         (p[lab >= 0], lab[lab >= 0])
         for t, p in enumerate(touches.points)
-        if touches.used[t] and (lab := touches.labels_of(t)).max() >= 0
+        if (lab := touches.used_labels_of(t)).max() >= 0
     ]
     if not used:
         return None

@@ -44,13 +44,17 @@ class TouchSet:
     points: per touch an (n_i, 3) array of contact points; labels: (T,) the touch's label
     (-1: none); used: (T,) whether the material loss trained on it (a label the vote left
     out is not used); point_labels: per touch (n_i,) labels of its points when they differ
-    (patch readings), None: every point takes its touch's label.
+    (patch readings), None: every point takes its touch's label; used_point_labels: per
+    touch (n_i,) the labels the material loss trained on, -1 where the vote left a reading
+    out (with patch readings the vote judges each material a touch reads on its own, so a
+    used touch can still have a reading left out), None: `used` decides per touch.
     """
 
     points: list[np.ndarray]
     labels: np.ndarray
     used: np.ndarray
     point_labels: list[np.ndarray] | None = None
+    used_point_labels: list[np.ndarray] | None = None
 
     def __post_init__(self) -> None:
         self.labels = np.asarray(self.labels, dtype=np.int64).reshape(-1)
@@ -63,12 +67,26 @@ class TouchSet:
             len(p) for p in self.points
         ]:
             raise ValueError("point_labels must hold one label per contact point of each touch")
+        if self.used_point_labels is not None and [len(p) for p in self.used_point_labels] != [
+            len(p) for p in self.points
+        ]:
+            raise ValueError(
+                "used_point_labels must hold one label per contact point of each touch"
+            )
 
     def labels_of(self, t: int) -> np.ndarray:
         """(n_t,) labels of touch t's points."""
         if self.point_labels is not None:
             return np.asarray(self.point_labels[t], dtype=np.int64)
         return np.full(len(self.points[t]), self.labels[t], dtype=np.int64)
+
+    def used_labels_of(self, t: int) -> np.ndarray:
+        """(n_t,) labels of touch t's points that the material loss trained on (-1: not)."""
+        if self.used_point_labels is not None:
+            return np.asarray(self.used_point_labels[t], dtype=np.int64)
+        if not self.used[t]:
+            return np.full(len(self.points[t]), -1, dtype=np.int64)
+        return self.labels_of(t)
 
 
 def face_regions(obj: MaterialObject) -> np.ndarray:
@@ -112,14 +130,13 @@ def region_cases(
     material[regions[regions >= 0]] = np.asarray(obj.face_labels)[regions >= 0]
     presses, labelled, right, right_used = (np.zeros(count, dtype=np.int64) for _ in range(4))
     for t, (ids, point_region) in enumerate(_pressed_regions(obj, regions, touches)):
-        point_labels = touches.labels_of(t)
+        point_labels, used_labels = touches.labels_of(t), touches.used_labels_of(t)
         for r in ids:
             read = point_labels[point_region == r]
             presses[r] += 1
             labelled[r] += bool((read >= 0).any())
-            hit = bool((read == material[r]).any())
-            right[r] += hit
-            right_used[r] += hit and bool(touches.used[t])
+            right[r] += bool((read == material[r]).any())
+            right_used[r] += bool((used_labels[point_region == r] == material[r]).any())
     cases = [
         "unpressed" if presses[r] == 0
         else "supported" if right_used[r] > 0
@@ -197,7 +214,7 @@ def _supported_distances(
     counts = np.zeros(len(bins) - 1, dtype=np.int64)
     for m in np.unique(truth[chosen]):
         mine = chosen & (truth == m)
-        ok = [p[touches.labels_of(t) == m] for t, p in enumerate(touches.points) if touches.used[t]]
+        ok = [p[touches.used_labels_of(t) == m] for t, p in enumerate(touches.points)]
         distance = cKDTree(np.concatenate(ok)).query(points[mine])[0]
         counts += np.histogram(distance, bins=bins)[0]
     names = [f"<{b * 100:g}cm" for b in DISTANCE_BINS_M] + [f">={DISTANCE_BINS_M[-1] * 100:g}cm"]

@@ -106,3 +106,18 @@ def test_a_touch_with_point_labels_supports_each_region_its_points_name(sphere) 
     assert {r["material"]: r["case"] for r in plain["regions"]}["fabric"] == "mislabelled"
     with pytest.raises(ValueError, match="point_labels"):
         TouchSet([across], np.array([0]), np.array([True]), [np.zeros(3)])
+
+
+def test_a_reading_the_vote_left_out_does_not_support_its_region(sphere) -> None:
+    # A used press across the border whose fabric reading the vote left out: the fabric
+    # side was read rightly but nothing trained on it, so the region counts as outvoted.
+    angles = np.linspace(-0.3, 0.3, 64)
+    across = RADIUS * np.column_stack([np.ones(64), angles, np.zeros(64)])
+    across /= np.linalg.norm(across, axis=1, keepdims=True) / RADIUS
+    read = np.where(across[:, 1] > 0, PLASTIC, FABRIC)
+    used = np.where(read == PLASTIC, PLASTIC, -1)
+    touches = TouchSet([across], np.array([PLASTIC]), np.array([True]), [read], [used])
+    cases = {r["material"]: r["case"] for r in _sources(sphere, touches)["regions"]}
+    assert cases == {"plastic": "supported", "fabric": "outvoted"}
+    with pytest.raises(ValueError, match="used_point_labels"):
+        TouchSet([across], np.array([0]), np.array([True]), [read], [np.zeros(3)])
