@@ -28,7 +28,7 @@ from neuralfeels_sem.mapping.sampling import (
 if TYPE_CHECKING:
     from neuralfeels_sem.mapping.mapper import MapperConfig
 
-MATERIAL_SAMPLINGS = ("uniform", "balanced")  # mapping.mapper.material_sampling
+MATERIAL_SAMPLINGS = ("uniform", "balanced", "tempered")  # mapping.mapper.material_sampling
 
 
 @dataclass
@@ -73,6 +73,10 @@ class BatchSampler:
         self.free_samples = config.free_samples
         self.material_points = config.material_points
         self.material_sampling = config.material_sampling
+        # A material's share of the draws grows with its point count to this power.
+        self.material_power = {"balanced": 0.0, "tempered": config.material_temper_power}.get(
+            config.material_sampling, 1.0
+        )
         self._grouped: tuple | None = None  # (labels, label_groups(labels)) of the last step
         self.space_prior_points = config.space_prior_points
         self.truncation = float(config.truncation)
@@ -87,12 +91,13 @@ class BatchSampler:
         rays = [(camera.samples, self.camera_weight)] if camera else []
         rays += [(tactile, self.tactile_weight)] if tactile else []
         touch = self.memory.touches.tensors()
-        if self.material_sampling == "balanced":
+        if self.material_sampling != "uniform":
             pick = balanced_indices(
                 self._groups(touch["labelled_labels"]),
                 self.material_points,
                 self.generator,
                 self.device,
+                self.material_power,
             )
         else:
             pick = random_indices(

@@ -65,8 +65,11 @@ class MapperConfig:
     # uniform: every labelled point alike; balanced: each material the touches name gets an
     # equal share of the draws, so a small insert's few points train as often as the
     # largest material's many (batch.py). balanced over-extends the rare materials on the
-    # generated development objects (docs/field_and_mapper.md#steps-per-frame).
+    # generated development objects (docs/field_and_mapper.md#steps-per-frame); tempered:
+    # a material's share grows with its point count to material_temper_power (between the
+    # two: 1 is uniform, 0 balanced).
     material_sampling: str = "uniform"
+    material_temper_power: float = 0.5
     truncation: float = 0.005  # metres
     camera_free_range: float = 0.05  # metres in front of the surface
     tactile_free_range: float = 0.01
@@ -123,6 +126,10 @@ class MapperConfig:
             raise ValueError(
                 f"mapping.mapper.material_sampling={self.material_sampling!r}: use one of "
                 f"{', '.join(MATERIAL_SAMPLINGS)}"
+            )
+        if not 0.0 <= self.material_temper_power <= 1.0:
+            raise ValueError(
+                f"mapping.mapper.material_temper_power={self.material_temper_power} must be in [0, 1]"
             )
         if self.camera_mask not in CAMERA_MASKS:
             raise ValueError(

@@ -98,13 +98,20 @@ def balanced_indices(
     n_draw: int,
     generator: torch.Generator,
     device: torch.device,
+    power: float = 0.0,
 ) -> torch.Tensor:
-    """n_draw indices with replacement, each label of `groups` (label_groups) equally likely,
-    then uniform among its points; empty when there are no points."""
+    """n_draw indices with replacement: a label of `groups` (label_groups) drawn with
+    probability proportional to its point count to the `power` (0: every label equally
+    likely; 1: as uniform over all points), then uniform among its points; empty when
+    there are no points."""
     order, starts, counts = groups
     if len(order) == 0 or n_draw == 0:
         return torch.zeros(0, dtype=torch.long, device=device)
-    which = torch.randint(len(counts), (n_draw,), generator=generator)
+    if power == 0.0:
+        which = torch.randint(len(counts), (n_draw,), generator=generator)
+    else:
+        share = counts.double() ** power
+        which = torch.multinomial(share, n_draw, replacement=True, generator=generator)
     within = (torch.rand(n_draw, generator=generator) * counts[which]).long()
     within = torch.minimum(within, counts[which] - 1)  # float rounding must not reach the next
     return order[starts[which] + within].to(device)

@@ -223,6 +223,7 @@ def test_field_fits_sphere_sdf_below_2mm() -> None:
         (False, 0, "uniform", 0.98),
         (False, None, "uniform", 0.95),
         (False, None, "balanced", 0.95),
+        (False, None, "tempered", 0.95),
     ],
 )
 def test_material_split_from_sparse_touches(
@@ -260,6 +261,7 @@ def test_eikonal_term_trains_through_the_sparse_hash_grid() -> None:
         {"steps_per_frame": -1},
         {"steps_policy": "adaptive"},
         {"material_sampling": "stratified"},
+        {"material_temper_power": 1.5},
     ],
 )
 def test_bad_settings_are_refused_by_the_config(bad: dict) -> None:

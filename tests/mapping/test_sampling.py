@@ -87,3 +87,14 @@ def test_balanced_indices_give_each_material_an_equal_share() -> None:
     empty = label_groups(torch.zeros(0, dtype=torch.long))
     assert len(balanced_indices(empty, 10, g, torch.device("cpu"))) == 0
     assert len(balanced_indices(groups, 0, g, torch.device("cpu"))) == 0
+
+
+@pytest.mark.parametrize("power", [0.5, 1.0])
+def test_tempered_shares_grow_with_the_point_count_to_the_power(power: float) -> None:
+    labels = torch.tensor([0] * 1000 + [2] * 10 + [3] * 90)
+    g = torch.Generator().manual_seed(1)
+    idx = balanced_indices(label_groups(labels), 40000, g, torch.device("cpu"), power)
+    share = torch.bincount(labels[idx], minlength=4).double() / len(idx)
+    expected = torch.tensor([1000.0, 0.0, 10.0, 90.0], dtype=torch.float64) ** power
+    expected[1] = 0.0
+    assert torch.allclose(share, expected / expected.sum(), atol=0.01)
