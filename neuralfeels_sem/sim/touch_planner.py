@@ -132,6 +132,10 @@ class TouchPlannerConfig:
     """`sensor.planner`: how the active policy picks touches and when it regrasps."""
 
     candidates: int = 48  # reachable touches screened and scored per new contact
+    # Rank by score x the touch's share of a full contact (its gel rays in contact, up to
+    # the rig's GOOD_CONTACT_RAYS): a gel that meets the object with its edge leaves an
+    # imprint the classifier often abstains on, and an unlabelled press teaches no material.
+    weigh_by_contact: bool = True
     regrasp_below: float = 0.5  # a best reachable score under this starves the planner
     regrasp_after: int = 8  # new contacts in a row that starve before a regrasp
     regrasp_gap_s: float = 2.0  # at least this long between regrasps (the slide takes 1 s)
@@ -166,16 +170,27 @@ class TouchPlanner:
         self.last_regrasp_s = -np.inf
         self.choices: list[tuple[float, int, float]] = []  # (touch-down s, advice frame, score)
 
-    def rank(self, points: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
+    def rank(
+        self, points: np.ndarray, contact: np.ndarray | None = None
+    ) -> tuple[np.ndarray, np.ndarray]:
         """Order (best first, ties keep the given order) and scores of candidate points.
 
-        Without advice yet: the given order, scores all 1 (the sampler's own ranking).
+        contact: (N,) each touch's share of a full contact in [0, 1]; with
+        `weigh_by_contact` the order follows score x contact (the scores returned stay
+        the advice's own). Without advice yet: the given order, scores all 1 (the
+        sampler's own ranking).
         """
         points = np.asarray(points, np.float64).reshape(-1, 3)
         if self.advice is None:
             return np.arange(len(points)), np.ones(len(points))
         scores = self.advice.score(points)
-        return np.lexsort((np.arange(len(points)), -scores)), scores
+        key = scores
+        if contact is not None and self.config.weigh_by_contact:
+            contact = np.asarray(contact, np.float64).reshape(-1)
+            if contact.shape != scores.shape or np.any((contact < 0) | (contact > 1)):
+                raise ValueError(f"contact must be {len(scores)} shares in [0, 1]")
+            key = scores * contact
+        return np.lexsort((np.arange(len(points)), -key)), scores
 
     def note_choice(self, touchdown_s: float, best_score: float) -> bool:
         """Record a new contact's best reachable score; True when a regrasp is due."""

@@ -50,6 +50,22 @@ def test_planner_ranks_candidates_best_first_and_keeps_ties_in_order() -> None:
     assert scores[order[0]] == pytest.approx(1.0)
 
 
+def test_an_edge_contact_ranks_below_a_full_one_of_a_slightly_lower_score() -> None:
+    # Scores 1.0 (edge contact: 3 of 10 rays) and 0.75 (full contact): the full one first,
+    # unless the ranking is told to ignore contact; the returned scores are the advice's.
+    points = np.array([[0.0, 0.04, 0.0], [0.04, 0.0, 0.0]])
+    planner = TouchPlanner()
+    planner.advice = _advice()
+    order, scores = planner.rank(points, np.array([0.3, 1.0]))
+    np.testing.assert_array_equal(order, [1, 0])
+    np.testing.assert_allclose(scores, [1.0, 0.75])
+    plain = TouchPlanner(TouchPlannerConfig(weigh_by_contact=False))
+    plain.advice = _advice()
+    np.testing.assert_array_equal(plain.rank(points, np.array([0.3, 1.0]))[0], [0, 1])
+    with pytest.raises(ValueError, match="contact"):
+        planner.rank(points, np.array([0.3, 1.5]))
+
+
 def test_a_regrasp_is_due_after_enough_starved_contacts_and_not_too_often() -> None:
     planner = TouchPlanner(
         TouchPlannerConfig(regrasp_below=0.5, regrasp_after=3, regrasp_gap_s=5.0)
