@@ -107,9 +107,22 @@ class ContactSampler:
         """Screened touches best score first (sensor.policy=active); may start a regrasp."""
         contact = np.array([-c[0] / GOOD_CONTACT_RAYS for c in touches])  # full: 1
         order, scores = planner.rank(np.array([c[4] for c in touches]), contact)
-        if planner.note_choice(touchdown_s, float(scores.max())):
+        height = self._hotspot_height(planner, touchdown_s)
+        if planner.note_choice(touchdown_s, float(scores.max()), height):
             self._regrasp(touchdown_s)
         return [touches[i] for i in order]
+
+    def _hotspot_height(self, planner, t: float) -> float | None:
+        """How far (m) the advice's hotspot lies from the grasp centre's height along the
+        axis the object turns about at t (None without advice): the fingers press around
+        that height, so a hotspot far from it is out of the current turn's reach."""
+        spot = None if planner.advice is None else planner.advice.hotspot()
+        if spot is None:
+            return None
+        world_T_object = self.trajectory.pose(t)
+        axis = self.trajectory.segment_axis(self.trajectory.segment(t))
+        world = world_T_object[:3, :3] @ spot + world_T_object[:3, 3] - self.trajectory.centre
+        return abs(float(axis @ world))
 
     def _draw_postures(
         self, finger: str, touchdown_s: float, rng: np.random.Generator

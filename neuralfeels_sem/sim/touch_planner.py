@@ -139,6 +139,9 @@ class TouchPlannerConfig:
     regrasp_below: float = 0.5  # a best reachable score under this starves the planner
     regrasp_after: int = 8  # new contacts in a row that starve before a regrasp
     regrasp_gap_s: float = 2.0  # at least this long between regrasps (the slide takes 1 s)
+    # Also regrasp when the hotspot lies farther than this from the fingers' height along
+    # the axis the object turns about: the current turn never brings it to them. null: off.
+    out_of_reach_m: float | None = 0.03
     max_offset_m: float = 0.05  # the object's centre stays this close to the grasp centre
     keep_m: float = 0.02  # a regrasp brings the hotspot this close to the fingers' height
     axes: list[list[float]] = field(
@@ -152,6 +155,10 @@ class TouchPlannerConfig:
             raise ValueError(f"sensor.planner.regrasp_below={self.regrasp_below} must be in [0, 1]")
         if self.regrasp_after < 1:
             raise ValueError(f"sensor.planner.regrasp_after={self.regrasp_after} must be >= 1")
+        if self.out_of_reach_m is not None and self.out_of_reach_m <= 0:
+            raise ValueError(
+                f"sensor.planner.out_of_reach_m={self.out_of_reach_m} must be > 0 or null"
+            )
         if self.regrasp_gap_s < 0 or self.max_offset_m < 0 or self.keep_m < 0:
             raise ValueError("sensor.planner: regrasp_gap_s, max_offset_m and keep_m must be >= 0")
         if not self.axes or any(len(a) != 3 or np.linalg.norm(a) < 1e-9 for a in self.axes):
@@ -192,17 +199,25 @@ class TouchPlanner:
             key = scores * contact
         return np.lexsort((np.arange(len(points)), -key)), scores
 
-    def note_choice(self, touchdown_s: float, best_score: float) -> bool:
-        """Record a new contact's best reachable score; True when a regrasp is due."""
+    def note_choice(
+        self, touchdown_s: float, best_score: float, hotspot_height_m: float | None = None
+    ) -> bool:
+        """Record a new contact's best reachable score; True when a regrasp is due.
+
+        hotspot_height_m: the hotspot's distance from the fingers' height along the axis
+        the object turns about now (None: unknown); beyond `out_of_reach_m` a regrasp is
+        due as when starved.
+        """
         frame = -1 if self.advice is None else self.advice.frame_index
         self.choices.append((float(touchdown_s), frame, float(best_score)))
         if self.advice is None:
             return False
         self.starved = self.starved + 1 if best_score < self.config.regrasp_below else 0
+        reach = self.config.out_of_reach_m
+        away = reach is not None and hotspot_height_m is not None and hotspot_height_m > reach
         due = (
-            self.starved >= self.config.regrasp_after
-            and touchdown_s - self.last_regrasp_s >= self.config.regrasp_gap_s
-        )
+            self.starved >= self.config.regrasp_after or away
+        ) and touchdown_s - self.last_regrasp_s >= self.config.regrasp_gap_s
         if due:
             self.starved, self.last_regrasp_s = 0, float(touchdown_s)
         return due

@@ -1,4 +1,5 @@
-"""sensor.policy=active in the rig: best-scoring reachable touches, repeatable, regrasps when starved.
+"""sensor.policy=active in the rig: best-scoring reachable touches, repeatable, regrasps when starved
+or when the hotspot is out of the turn's reach.
 
 The rig alone (no rendering), on a 4 cm two-material sphere, with fixed advice.
 """
@@ -9,6 +10,7 @@ import numpy as np
 
 from neuralfeels_sem.configs.sensor_sim import SimSensorConfig
 from neuralfeels_sem.sim.rig import SimRig
+from neuralfeels_sem.sim.rig_params import GOOD_CONTACT_RAYS
 from neuralfeels_sem.sim.touch_planner import (
     TouchAdvice,
     TouchPlanner,
@@ -51,7 +53,8 @@ def test_the_touch_is_the_best_scoring_candidate_that_verifies() -> None:
     def spy(finger, order, press, firm, world_T_object):
         contact = verify(finger, order, press, firm, world_T_object)
         scores = rig.planner.advice.score(np.array([c[4] for c in order]))
-        assert (np.diff(scores) <= 1e-12).all()  # tried best score first
+        full = np.array([-c[0] / GOOD_CONTACT_RAYS for c in order])
+        assert (np.diff(scores * full) <= 1e-12).all()  # best score x contact first
         if contact is not None and len(checked) < 3:
             # the first candidate that verifies on its own is the one pressed
             first = next(c for c in order if verify(finger, [c], press, firm, world_T_object))
@@ -110,3 +113,26 @@ def test_a_starved_planner_regrasps_and_the_rig_goes_on() -> None:
     assert np.linalg.norm(offset) <= rig.planner.config.max_offset_m + 1e-12
     rig.scene.step(100)
     assert rig.scene.warning_count == 0
+
+
+def test_a_hotspot_beyond_the_turns_reach_starts_a_regrasp_soon() -> None:
+    # Only the pole of the axis the object turns about first is uncertain: the turn never
+    # brings it to the fingers, so the planner regrasps at its first advised contact.
+    sphere = two_material_sphere()
+    surface = np.asarray(sphere.mesh.vertices)
+    probe = SimRig(sphere, seed=0, **MOTION)
+    probe.open()
+    pose, axis = probe.trajectory.pose(0.0), probe.trajectory.segment_axis(0)
+    pole = int(np.argmax((surface @ pose[:3, :3].T) @ axis))
+    entropy = np.zeros(len(surface))
+    entropy[pole] = 1.0
+    advice = TouchAdvice(surface, entropy, surface, TouchScoreConfig(), 0)
+    # regrasp_after out of play: only the reach can start a regrasp here
+    rig = _active_rig(advice, out_of_reach_m=0.01, regrasp_gap_s=0.5, regrasp_after=100)
+    for i in range(10):
+        rig.state_at(i / 10)
+    assert rig.trajectory.regrasps and rig.trajectory.regrasps[0][0] < 1.0
+    starved_only = _active_rig(advice, out_of_reach_m=None, regrasp_gap_s=0.5, regrasp_after=100)
+    for i in range(10):
+        starved_only.state_at(i / 10)
+    assert not starved_only.trajectory.regrasps

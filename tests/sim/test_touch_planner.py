@@ -78,6 +78,21 @@ def test_a_regrasp_is_due_after_enough_starved_contacts_and_not_too_often() -> N
     assert [planner.note_choice(t, 0.1) for t in (7.1, 7.2, 7.3)] == [False, False, True]
 
 
+def test_a_regrasp_is_due_when_the_hotspot_is_out_of_the_turns_reach() -> None:
+    planner = TouchPlanner(TouchPlannerConfig(out_of_reach_m=0.03, regrasp_gap_s=2.0))
+    assert not planner.note_choice(0.0, 0.9, 0.08)  # no advice yet
+    planner.advice = _advice()
+    assert not planner.note_choice(1.0, 0.9, 0.02)  # within reach, good scores
+    assert planner.note_choice(1.1, 0.9, 0.04)  # beyond reach: regrasp at once
+    assert not planner.note_choice(2.0, 0.9, 0.04)  # but not within the gap
+    assert planner.note_choice(3.2, 0.9, 0.04)
+    off = TouchPlanner(TouchPlannerConfig(out_of_reach_m=None))
+    off.advice = _advice()
+    assert not off.note_choice(1.0, 0.9, 0.08)
+    with pytest.raises(ValueError, match="out_of_reach_m"):
+        TouchPlannerConfig(out_of_reach_m=0.0)
+
+
 def test_regrasp_move_slides_the_hotspot_to_the_fingers_along_the_palm() -> None:
     planner = TouchPlanner(TouchPlannerConfig(max_offset_m=0.05, keep_m=0.02))
     far = np.array([0.09, 0.01, 0.0])  # the far end of a long object, along x
