@@ -140,8 +140,10 @@ class TouchPlannerConfig:
     regrasp_after: int = 8  # new contacts in a row that starve before a regrasp
     regrasp_gap_s: float = 2.0  # at least this long between regrasps (the slide takes 1 s)
     # Also regrasp when the hotspot lies farther than this from the fingers' height along
-    # the axis the object turns about: the current turn never brings it to them. null: off.
-    out_of_reach_m: float | None = 0.03
+    # the axis the object turns about: the current turn never brings it to them. null
+    # (default): off; at 0.03 it regrasped 2-7 times a run and mapped worse
+    # (docs/simulation.md).
+    out_of_reach_m: float | None = None
     max_offset_m: float = 0.05  # the object's centre stays this close to the grasp centre
     keep_m: float = 0.02  # a regrasp brings the hotspot this close to the fingers' height
     axes: list[list[float]] = field(
