@@ -72,8 +72,12 @@ def show(value: Any) -> str:
 
 
 # Settings read only in some modes: {prefix: (the key that picks the mode, its value in
-# which they are unread)}. A run that read the simulator's pose never ran the tracker.
-UNREAD_IN: dict[str, tuple[str, str]] = {"mapping.tracker.": ("mapping.pose", "gt")}
+# which they are unread)}. A run that read the simulator's pose never ran the tracker; a
+# scripted gait never asks the touch planner.
+UNREAD_IN: dict[str, tuple[str, str]] = {
+    "mapping.tracker.": ("mapping.pose", "gt"),
+    "sensor.planner.": ("sensor.policy", "scripted"),
+}
 
 
 def unread_beside(mode_key: str) -> tuple[str, ...]:
@@ -99,11 +103,13 @@ def compared(key: str, flat: dict[str, Any] | None = None) -> bool:
 # with)}. classifier.patch_probe came with 0 (every patch read); the default became 2.
 # mapping.tracker.max_points_per_finger came with 1000 (the camera's cap, which applied to
 # every source before); the default became 200. mapping.mapper.label_vote_steady_frames
-# came with 0 (no press backs itself); the default became 3.
+# came with 0 (no press backs itself); the default became 3. sensor.planner.weigh_by_contact
+# came with true: the active runs before it ranked by score alone.
 ADDED_SINCE: dict[str, tuple[str, Any]] = {
     "classifier.patch_probe": ("classifier.max_patches", 0),
     "mapping.tracker.max_points_per_finger": ("mapping.tracker.max_points_per_source", 1000),
     "mapping.mapper.label_vote_steady_frames": ("mapping.mapper.label_vote_press_gap", 0),
+    "sensor.planner.weigh_by_contact": ("sensor.planner.candidates", False),
 }
 
 

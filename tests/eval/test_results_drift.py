@@ -141,3 +141,19 @@ def test_tracker_settings_do_not_make_a_pose_gt_run_another_setting() -> None:
     assert drift({"mapping": {"pose": "gt", **weights}}, {}, today) == {}
     tracked = drift({"mapping": {"pose": "track", **weights}}, {"mapping.pose": "track"}, today)
     assert tracked == {"mapping.tracker.source_weights.tactile": (0.0, 0.5)}
+
+
+def test_an_active_run_before_the_contact_share_reads_as_without_it() -> None:
+    """Active runs from before weigh_by_contact ranked by score alone; a scripted run never
+    asks the planner, so no planner setting makes it another setting."""
+    today = {
+        "sensor.policy": "scripted",
+        "sensor.planner.candidates": 48,
+        "sensor.planner.weigh_by_contact": True,
+    }
+    planner = {"candidates": 48}
+    active = {"sensor": {"policy": "active", "planner": planner}}
+    assert drift(active, {"sensor.policy": "active"}, today) == {
+        "sensor.planner.weigh_by_contact": (False, True)
+    }
+    assert drift({"sensor": {"policy": "scripted", "planner": planner}}, {}, today) == {}
