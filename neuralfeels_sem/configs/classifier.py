@@ -18,6 +18,9 @@ class EfficientNetClassifierConfig:
     min_confidence: float = 0.8
     # No label when more than this share of the contact lies within edge_px of the border.
     max_edge_share: float = 0.5  # 1.0 = off
+    # Above 0: an imprint past max_edge_share read confidently keeps its label, trusted
+    # this much by the map (TouchLabel.weight; no patch readings) instead of none.
+    edge_label_weight: float = 0.0
     edge_px: int = 16
     contact_threshold: float = 30.0
     contact_min_area: float = 0.01
@@ -61,6 +64,10 @@ class EfficientNetClassifierConfig:
             raise ValueError(f"classifier.min_confidence={self.min_confidence} must be in [0, 1]")
         if not 0.0 < self.max_edge_share <= 1.0:
             raise ValueError(f"classifier.max_edge_share={self.max_edge_share} must be in (0, 1]")
+        if not 0.0 <= self.edge_label_weight <= 1.0:
+            raise ValueError(
+                f"classifier.edge_label_weight={self.edge_label_weight} must be in [0, 1]"
+            )
         if self.edge_px < 0:
             raise ValueError(f"classifier.edge_px={self.edge_px} must be >= 0")
         if self.contact_threshold <= 0:

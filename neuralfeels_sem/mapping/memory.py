@@ -161,7 +161,8 @@ def touch_point_labels(
 
     With patch readings (`label.pixel_labels`) each point takes the label of the pixel it
     was seen at (the points are projected back into the sensor); otherwise every point
-    takes the touch's label when it is usable, weighted by its confidence, else -1.
+    takes the touch's label when it is usable, weighted by its confidence (times the
+    label's `weight`), else -1.
     """
     n = len(points)
     if label is None or not label.contact:
@@ -174,5 +175,5 @@ def touch_point_labels(
         row = np.clip(np.rint(uv[:, 1]).astype(np.int64), 0, h - 1)
         return label.pixel_labels[row, col].astype(np.int64), label.pixel_confidence[row, col]
     if label.usable:
-        return np.full(n, label.label), np.full(n, label.confidence)
+        return np.full(n, label.label), np.full(n, label.confidence * label.weight)
     return np.full(n, -1), np.zeros(n)

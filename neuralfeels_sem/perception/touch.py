@@ -29,6 +29,9 @@ class TouchLabel:
     # none) and that patch's confidence, both (H, W). None: one label for the whole touch.
     pixel_labels: np.ndarray | None = None
     pixel_confidence: np.ndarray | None = None
+    # How much the map trusts the label beside its confidence: below 1 for an imprint
+    # along the sensor's border read at classifier.edge_label_weight.
+    weight: float = 1.0
 
     @property
     def usable(self) -> bool:

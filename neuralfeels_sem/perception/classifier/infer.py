@@ -49,6 +49,8 @@ class MaterialClassifier:
         rig's own touches (`bench/rig_touches.py`, seed 0, seven objects): the shipped model
         labels 63 % of them, 99.3 % correctly; thinner strips are often wrong even when
         the model is confident.
+    edge_label_weight: above 0, such an imprint read confidently keeps its label with this
+        `TouchLabel.weight` (the map trusts it less; no patch readings), instead of none.
     contact_*: ContactGate parameters (see perception/contact.py).
     background_dir: folder of `<finger>.png` no-contact frames (e.g. `<data>/_backgrounds`).
     first_frame_background: without any background, take a finger's first frame as its
@@ -68,6 +70,7 @@ class MaterialClassifier:
         min_confidence: float = 0.8,
         max_edge_share: float = 0.5,
         edge_px: int = 16,
+        edge_label_weight: float = 0.0,
         contact_threshold: float = 30.0,
         contact_min_area: float = 0.01,
         contact_blur_px: float = 3.0,
@@ -93,6 +96,9 @@ class MaterialClassifier:
             )
         self.max_edge_share = float(max_edge_share)
         self.edge_px = int(edge_px)
+        if not 0.0 <= edge_label_weight <= 1.0:
+            raise ValueError(f"edge_label_weight={edge_label_weight} must be in [0, 1]")
+        self.edge_label_weight = float(edge_label_weight)
         self.gate = ContactGate(contact_threshold, contact_min_area, contact_blur_px)
         self.background_dir = background_dir
         self.first_frame_background = first_frame_background
@@ -260,11 +266,12 @@ class MaterialClassifier:
                 top = int(p.argmax())
                 labels[i].probs = p
                 labels[i].confidence = float(p[top])
-                if p[top] < self.min_confidence or at_edge[i]:
+                if p[top] < self.min_confidence or (at_edge[i] and not self.edge_label_weight):
                     labels[i].low_confidence = True
                     labels[i].label = NO_LABEL
                 else:
                     labels[i].label = top
+                    labels[i].weight = self.edge_label_weight if at_edge[i] else 1.0
             if self.patch_spacing_px > 0:
                 read = [i for i in touched if not at_edge[i]]
                 self._read_patches([readings[i] for i in read], [masks[i] for i in read],
