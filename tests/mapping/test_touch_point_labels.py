@@ -47,6 +47,8 @@ def test_each_contact_point_takes_the_label_of_the_pixel_it_came_from() -> None:
     plain = TouchLabel("index", True, label=2, confidence=0.95)
     labels, weights = touch_point_labels(reading, points, world_T_object, plain)
     assert (labels == 2).all() and np.allclose(weights, 0.95)
+    edge = TouchLabel("index", True, label=2, confidence=0.95, weight=0.3)  # an edge imprint
+    assert np.allclose(touch_point_labels(reading, points, world_T_object, edge)[1], 0.285)
     abstained = TouchLabel("index", True, low_confidence=True)
     assert (touch_point_labels(reading, points, world_T_object, abstained)[0] == -1).all()
     assert (touch_point_labels(reading, points, world_T_object, None)[0] == -1).all()

@@ -9,6 +9,7 @@ import numpy as np
 import pytest
 import torch
 
+from neuralfeels_sem.configs.classifier import EfficientNetClassifierConfig
 from neuralfeels_sem.core.digit import DIGIT_INTRINSICS
 from neuralfeels_sem.core.errors import ConfigError
 from neuralfeels_sem.core.frame import TactileReading
@@ -160,6 +161,16 @@ def test_imprint_cut_off_by_the_sensor_edge_gets_no_label(checkpoint: Path) -> N
     assert off.classify([reading("index", strip, bg)])[0].usable
     with pytest.raises(ValueError, match="max_edge_share"):
         MaterialClassifier(CLASSES, max_edge_share=0.0)
+    # With edge_label_weight the strip keeps its label, trusted less; a centred touch not.
+    weak, full = MaterialClassifier(CLASSES, edge_label_weight=0.3, **kwargs).classify(
+        [reading("index", strip, bg), reading("index", centred, bg)]
+    )
+    assert weak.usable and weak.weight == 0.3 and weak.label == int(edge.probs.argmax())
+    assert full.usable and full.weight == 1.0
+    with pytest.raises(ValueError, match="edge_label_weight"):
+        MaterialClassifier(CLASSES, edge_label_weight=1.5)
+    with pytest.raises(ValueError, match="edge_label_weight"):
+        EfficientNetClassifierConfig(edge_label_weight=-0.1)
 
 
 def test_edge_share_counts_border_pixels() -> None:
