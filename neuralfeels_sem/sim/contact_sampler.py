@@ -114,9 +114,12 @@ class ContactSampler:
 
     def _hotspot_height(self, planner, t: float) -> float | None:
         """How far (m) the advice's hotspot lies from the grasp centre's height along the
-        axis the object turns about at t (None without advice): the fingers press around
-        that height, so a hotspot far from it is out of the current turn's reach."""
-        spot = None if planner.advice is None else planner.advice.hotspot()
+        axis the object turns about at t (None without advice, or when no regrasp asks for
+        it): the fingers press around that height, so a hotspot far from it is out of the
+        current turn's reach."""
+        if planner.advice is None or planner.config.out_of_reach_m is None:
+            return None  # scoring every surface sample for the hotspot is not free
+        spot = planner.advice.hotspot()
         if spot is None:
             return None
         world_T_object = self.trajectory.pose(t)

@@ -271,7 +271,8 @@ class MaterialClassifier:
                     labels[i].label = NO_LABEL
                 else:
                     labels[i].label = top
-                    labels[i].weight = self.edge_label_weight if at_edge[i] else 1.0
+                    if at_edge[i]:
+                        labels[i].weight = self.edge_label_weight
             if self.patch_spacing_px > 0:
                 read = [i for i in touched if not at_edge[i]]
                 self._read_patches([readings[i] for i in read], [masks[i] for i in read],
