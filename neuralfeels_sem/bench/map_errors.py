@@ -66,6 +66,9 @@ def run_errors(run_dir: Path) -> dict:
         # right, and every press read as the majority material under it.
         "nearest_contact_truth_mean_class_pct": nearest_contact_truth(obj, matching, touches),
         "nearest_press_truth_mean_class_pct": nearest_press_truth(obj, matching, touches),
+        # How right the readings the loss trained on are, and what the same points would
+        # give read perfectly (the gap to the ceiling above: presses left unread).
+        **used_point_truth(obj, matching, touches),
         **report,
     }
 
@@ -110,6 +113,28 @@ def nearest_press_truth(obj, matching: MatchingEvaluator, touches: TouchSet) -> 
     return nearest_press_map(matching, oracle)
 
 
+def used_point_truth(obj, matching: MatchingEvaluator, touches: TouchSet) -> dict:
+    """Share of the contact points the material loss trained on whose label is their true
+    material, and the oracle map that gives each sample the true material of the nearest
+    such point."""
+    used = [(p, touches.used_labels_of(t)) for t, p in enumerate(touches.points)]
+    points = np.concatenate([p[lab >= 0] for p, lab in used]) if used else np.zeros((0, 3))
+    if not len(points):
+        return {"used_point_accuracy_pct": None, "nearest_used_point_truth_mean_class_pct": None}
+    labels = np.concatenate([lab[lab >= 0] for _, lab in used])
+    truth = obj.labels_at(points)
+    scored = truth >= 0
+    if not scored.any():
+        return {"used_point_accuracy_pct": None, "nearest_used_point_truth_mean_class_pct": None}
+    nearest = cKDTree(points[scored]).query(matching.points)[1]
+    return {
+        "used_point_accuracy_pct": float(100.0 * np.mean(labels[scored] == truth[scored])),
+        "nearest_used_point_truth_mean_class_pct": matching.evaluate_labels(truth[scored][nearest])[
+            "matching_mean_class_pct"
+        ],
+    }
+
+
 def summary_line(row: dict) -> str:
     lost = row["by_case"]
     parts = " ".join(f"{c}={lost[c]['mean_class_points_lost']:5.1f}" for c in CASES)
@@ -120,9 +145,14 @@ def summary_line(row: dict) -> str:
         f"{row['nearest_press_truth_mean_class_pct'] or nan:5.1f}/"
         f"{row['nearest_contact_truth_mean_class_pct'] or nan:5.1f}"
     )
+    used = (
+        f"{row['used_point_accuracy_pct'] or nan:5.1f}/"
+        f"{row['nearest_used_point_truth_mean_class_pct'] or nan:5.1f}"
+    )
     return (
         f"{row['object']:>14} {family:>11} mean-class {row['matching_mean_class_pct'] or nan:5.1f}"
-        f" (nearest press {voronoi:5.1f}, true presses/points {ceilings})  lost: {parts}"
+        f" (nearest press {voronoi:5.1f}, true presses/points {ceilings},"
+        f" trained points right %/read true {used})  lost: {parts}"
     )
 
 

@@ -45,6 +45,10 @@ class EfficientNetClassifierConfig:
     # material throughout and its other patches are not read (43 % fewer crops on the
     # default run, maps as good: docs/classifier.md). 0: read every patch.
     patch_probe: int = 2
+    # A patch past the centroid is centred only where its crop holds at least this share
+    # of imprint pixels: a crop on the imprint's rim is half empty gel, unlike the training
+    # crops (centred on the contact). 0: centres anywhere on the contact.
+    patch_min_contact: float = 0.0
     # On a GPU: replay the forward from CUDA graphs, one launch per batch instead of a few
     # hundred (perception/classifier/graphed.py); false runs it eagerly.
     cuda_graphs: bool = True
@@ -59,6 +63,10 @@ class EfficientNetClassifierConfig:
         if not 0 <= self.patch_probe <= 64:
             raise ValueError(
                 f"classifier.patch_probe={self.patch_probe} must be in 0..64 (0: read every patch)"
+            )
+        if not 0.0 <= self.patch_min_contact <= 1.0:
+            raise ValueError(
+                f"classifier.patch_min_contact={self.patch_min_contact} must be in [0, 1]"
             )
         if not 0.0 <= self.min_confidence <= 1.0:
             raise ValueError(f"classifier.min_confidence={self.min_confidence} must be in [0, 1]")

@@ -14,7 +14,12 @@ from neuralfeels_sem.core.frame import TactileReading
 from neuralfeels_sem.perception.classifier import MaterialClassifier
 from neuralfeels_sem.perception.classifier.checkpoint import save_checkpoint
 from neuralfeels_sem.perception.classifier.model import build_model
-from neuralfeels_sem.perception.classifier.patches import crop_around, patch_centres, pixel_labels
+from neuralfeels_sem.perception.classifier.patches import (
+    crop_around,
+    crop_contact_share,
+    patch_centres,
+    pixel_labels,
+)
 from neuralfeels_sem.perception.classifier.transforms import IMAGENET_MEAN, IMAGENET_STD
 from neuralfeels_sem.perception.touch import NO_LABEL
 from tests.perception.synthetic_tactile import CLASSES, background, pressed
@@ -77,6 +82,50 @@ def crop_checkpoint(tmp_path_factory) -> Path:
         meta={"crop_px": 112},
     )  # fmt: skip
     return path
+
+
+def test_crop_contact_share_is_the_imprint_share_of_the_crop_crop_around_takes() -> None:
+    rng = np.random.default_rng(0)
+    mask = rng.random((DIGIT_HEIGHT, DIGIT_WIDTH)) < 0.3
+    share = crop_contact_share(mask, 112)
+    for r, c in [(0, 0), (100, 50), (319, 239), (160, 120), (57, 3), (200, 236)]:
+        expected = crop_around(mask, np.array([r, c], dtype=float), 112).mean()
+        assert share[r, c] == pytest.approx(expected, abs=1e-12)
+    disc = crop_contact_share(_disc(100), 112)
+    assert disc[160, 120] == 1.0 and disc[60, 120] < 0.5  # the centre full, the rim half empty
+
+
+def test_eligible_pixels_keep_the_centres_past_the_centroid_inside_the_imprint() -> None:
+    mask = _disc(100)
+    inner = crop_contact_share(mask, 112) >= 0.7
+    centres = patch_centres(mask, spacing_px=56, max_patches=64, eligible=inner)
+    np.testing.assert_allclose(centres[0], [160, 120], atol=0.5)
+    r, c = np.round(centres[1:]).astype(int).T
+    assert len(centres) > 1 and inner[r, c].all()
+    everywhere = patch_centres(mask, spacing_px=56, max_patches=64)
+    rr, cc = np.round(everywhere[1:]).astype(int).T
+    assert not inner[rr, cc].all()  # unconstrained, the far ends lie on the rim
+    # Nothing eligible past the centroid: the centroid's crop reads the whole touch.
+    none = patch_centres(mask, 56, 64, eligible=np.zeros_like(mask))
+    assert len(none) == 1
+    with pytest.raises(ValueError, match="eligible"):
+        patch_centres(mask, 56, 8, eligible=np.ones((3, 3), dtype=bool))
+
+
+def test_patch_min_contact_reads_fewer_rim_crops(crop_checkpoint: Path) -> None:
+    rng = np.random.default_rng(3)
+    touch = TactileReading("index", pressed(1, 0, rng), np.eye(4), DIGIT_INTRINSICS, background(1))
+    kwargs = {"checkpoint": str(crop_checkpoint), "device": "cpu", "patch_spacing_px": 40}
+    anywhere, inside = (
+        _MarkedRed(CLASSES, **kwargs),
+        _MarkedRed(CLASSES, patch_min_contact=0.8, **kwargs),
+    )
+    anywhere.classify([touch]), inside.classify([touch])
+    assert 1 <= inside.read < anywhere.read
+    with pytest.raises(ValueError, match="patch_min_contact"):
+        EfficientNetClassifierConfig(patch_min_contact=1.5)
+    with pytest.raises(ValueError, match="patch_min_contact"):
+        MaterialClassifier(CLASSES, patch_min_contact=-0.1)
 
 
 def test_classify_reads_patches_of_a_touch_unless_it_is_cut_off_by_the_edge(

@@ -24,7 +24,12 @@ from neuralfeels_sem.core.frame import TactileReading
 from neuralfeels_sem.perception.classifier.checkpoint import ClassifierCheckpoint, load_checkpoint
 from neuralfeels_sem.perception.classifier.graphed import GraphedModel
 from neuralfeels_sem.perception.classifier.model import build_model, fold_batch_norms
-from neuralfeels_sem.perception.classifier.patches import crop_around, patch_centres, pixel_labels
+from neuralfeels_sem.perception.classifier.patches import (
+    crop_around,
+    crop_contact_share,
+    patch_centres,
+    pixel_labels,
+)
 from neuralfeels_sem.perception.classifier.predict import predict_probs
 from neuralfeels_sem.perception.classifier.transforms import preprocess, resize_batch
 from neuralfeels_sem.perception.contact import ContactGate, edge_share
@@ -59,6 +64,8 @@ class MaterialClassifier:
         (`new_model()`) and its inputs; a loaded checkpoint carries its own input size and crop.
     patch_spacing_px, max_patches, patch_probe: patch readings across the imprint
         (perception/classifier/patches.py; `_read_patches`); spacing 0 = off.
+    patch_min_contact: a patch past the centroid is centred only where its crop holds at
+        least this share of imprint pixels (0: anywhere on the contact).
     cuda_graphs: on a GPU, replay the forward from CUDA graphs (perception/classifier/graphed.py).
     """
 
@@ -82,6 +89,7 @@ class MaterialClassifier:
         patch_spacing_px: int = 0,
         max_patches: int = 8,
         patch_probe: int = 0,
+        patch_min_contact: float = 0.0,
         cuda_graphs: bool = True,
     ) -> None:
         if not 0.0 <= min_confidence <= 1.0:
@@ -114,6 +122,9 @@ class MaterialClassifier:
         if patch_probe < 0:
             raise ValueError(f"patch_probe={patch_probe} must be >= 0 (0: read every patch)")
         self.patch_probe = int(patch_probe)
+        if not 0.0 <= patch_min_contact <= 1.0:
+            raise ValueError(f"patch_min_contact={patch_min_contact} must be in [0, 1]")
+        self.patch_min_contact = float(patch_min_contact)
         self.cuda_graphs = bool(cuda_graphs)
         self._backgrounds: dict[str, np.ndarray] = {}
         self._model: torch.nn.Module | None = None
@@ -294,7 +305,7 @@ class MaterialClassifier:
         crop_px = self.loaded.meta.get("crop_px")
         if not crop_px or not readings:
             return  # a whole-frame model has no patches to read
-        centres = [patch_centres(m, self.patch_spacing_px, self.max_patches) for m in masks]
+        centres = [self._patch_centres(m, crop_px) for m in masks]
         probe = self.patch_probe if self.patch_probe > 0 else self.max_patches
         first = self._predict_centres(readings, centres, 1, 1 + probe, crop_px)
         probs = [np.concatenate([lab.probs[None], p]) for lab, p in zip(labels, first)]
@@ -312,6 +323,14 @@ class MaterialClassifier:
             label.pixel_labels, label.pixel_confidence = pixel_labels(
                 reading.image.shape[:2], cs, top, conf, crop_px / 2.0
             )
+
+    def _patch_centres(self, mask: np.ndarray, crop_px: int) -> np.ndarray:
+        """The touch's patch centres; past the centroid only where the crop holds at least
+        `patch_min_contact` of imprint."""
+        eligible = None
+        if self.patch_min_contact > 0:
+            eligible = crop_contact_share(mask, crop_px) >= self.patch_min_contact
+        return patch_centres(mask, self.patch_spacing_px, self.max_patches, eligible)
 
     def _uniform(self, probs: np.ndarray) -> bool:
         """All readings (K, C) confident and naming one material."""

@@ -22,8 +22,15 @@ from neuralfeels_sem.perception.touch import NO_LABEL
 SAMPLE_STRIDE = 4  # farthest-point sampling runs on every 4th contact pixel (rows and columns)
 
 
-def patch_centres(mask: np.ndarray, spacing_px: float, max_patches: int) -> np.ndarray:
-    """(K, 2) (row, column) centres over a contact mask: centroid first, then farthest points."""
+def patch_centres(
+    mask: np.ndarray, spacing_px: float, max_patches: int, eligible: np.ndarray | None = None
+) -> np.ndarray:
+    """(K, 2) (row, column) centres over a contact mask: centroid first, then farthest points.
+
+    `eligible` (H, W) bool, optional: the pixels a centre after the first may take (e.g.
+    those whose crop is mostly imprint, `crop_contact_share`); the spacing is then kept
+    over the eligible contact pixels only.
+    """
     if mask.ndim != 2:
         raise ValueError(f"contact mask must be (H, W), got {mask.shape}")
     if spacing_px <= 0 or max_patches < 1:
@@ -33,6 +40,10 @@ def patch_centres(mask: np.ndarray, spacing_px: float, max_patches: int) -> np.n
         return np.zeros((0, 2))
     pixels = np.column_stack([rows, cols]).astype(np.float64)
     centres = [pixels.mean(axis=0)]
+    if eligible is not None:
+        if eligible.shape != mask.shape:
+            raise ValueError(f"eligible {eligible.shape} must match the mask {mask.shape}")
+        mask = mask & eligible
     sparse = mask[::SAMPLE_STRIDE, ::SAMPLE_STRIDE]
     r, c = np.nonzero(sparse)
     candidates = np.column_stack([r, c]).astype(np.float64) * SAMPLE_STRIDE
@@ -46,6 +57,24 @@ def patch_centres(mask: np.ndarray, spacing_px: float, max_patches: int) -> np.n
         centres.append(candidates[far])
         distance = np.minimum(distance, np.linalg.norm(candidates - candidates[far], axis=1))
     return np.array(centres)
+
+
+def crop_contact_share(mask: np.ndarray, crop_px: int) -> np.ndarray:
+    """(H, W) share of contact pixels in the crop `crop_around` takes centred on each pixel.
+
+    A crop centred on the imprint's rim is half empty gel, unlike the training crops
+    (centred on the contact): a summed-area table gives every pixel's share in one pass.
+    """
+    h, w = mask.shape
+    crop = min(int(crop_px), h, w)
+    table = np.zeros((h + 1, w + 1), dtype=np.int64)
+    table[1:, 1:] = np.cumsum(np.cumsum(mask, axis=0, dtype=np.int64), axis=1)
+    y0 = np.clip(np.round(np.arange(h) - crop / 2.0).astype(np.int64), 0, h - crop)[:, None]
+    x0 = np.clip(np.round(np.arange(w) - crop / 2.0).astype(np.int64), 0, w - crop)[None, :]
+    inside = (
+        table[y0 + crop, x0 + crop] - table[y0, x0 + crop] - table[y0 + crop, x0] + table[y0, x0]
+    )
+    return inside / float(crop * crop)
 
 
 def crop_around(image: np.ndarray, centre: np.ndarray, crop_px: int) -> np.ndarray:
