@@ -49,6 +49,9 @@ class EfficientNetClassifierConfig:
     # of imprint pixels: a crop on the imprint's rim is half empty gel, unlike the training
     # crops (centred on the contact). 0: centres anywhere on the contact.
     patch_min_contact: float = 0.0
+    # A patch naming another material than the touch's own (centre) label needs at least
+    # this confidence, else it abstains (at or below min_confidence: off).
+    patch_disagree_confidence: float = 0.0
     # On a GPU: replay the forward from CUDA graphs, one launch per batch instead of a few
     # hundred (perception/classifier/graphed.py); false runs it eagerly.
     cuda_graphs: bool = True
@@ -67,6 +70,11 @@ class EfficientNetClassifierConfig:
         if not 0.0 <= self.patch_min_contact <= 1.0:
             raise ValueError(
                 f"classifier.patch_min_contact={self.patch_min_contact} must be in [0, 1]"
+            )
+        if not 0.0 <= self.patch_disagree_confidence <= 1.0:
+            raise ValueError(
+                f"classifier.patch_disagree_confidence={self.patch_disagree_confidence} "
+                "must be in [0, 1]"
             )
         if not 0.0 <= self.min_confidence <= 1.0:
             raise ValueError(f"classifier.min_confidence={self.min_confidence} must be in [0, 1]")

@@ -202,6 +202,28 @@ def test_probing_the_far_ends_first_skips_the_rest_only_of_a_touch_of_one_materi
         EfficientNetClassifierConfig(patch_probe=-1)
 
 
+def test_a_patch_naming_another_material_than_the_centre_needs_patch_disagree_confidence(
+    crop_checkpoint: Path,
+) -> None:
+    rng = np.random.default_rng(3)
+    marked = pressed(1, 0, rng)
+    marked[260:, :, 0] = 255  # the imprint's far end reads wood at 0.97, the centre plastic
+    touch = TactileReading("index", marked, np.eye(4), DIGIT_INTRINSICS, background(1))
+    kwargs = {"checkpoint": str(crop_checkpoint), "device": "cpu", "patch_spacing_px": 40}
+    for bar, wood_kept in ((0.0, True), (0.96, True), (0.98, False)):
+        label = _MarkedRed(CLASSES, patch_disagree_confidence=bar, **kwargs).classify([touch])[0]
+        assert label.label == 0 and (3 in label.pixel_labels) == wood_kept
+        assert (label.pixel_labels[clf_contact(touch)] == 0).any()  # the centre's side stays
+    with pytest.raises(ValueError, match="patch_disagree_confidence"):
+        EfficientNetClassifierConfig(patch_disagree_confidence=2.0)
+    with pytest.raises(ValueError, match="patch_disagree_confidence"):
+        MaterialClassifier(CLASSES, patch_disagree_confidence=-1.0)
+
+
+def clf_contact(touch: TactileReading) -> np.ndarray:
+    return MaterialClassifier(CLASSES).contact_mask(touch)
+
+
 def test_pixel_labels_take_the_first_of_equally_near_centres_as_argmin_would() -> None:
     rng = np.random.default_rng(0)
     shape = (40, 30)

@@ -66,6 +66,8 @@ class MaterialClassifier:
         (perception/classifier/patches.py; `_read_patches`); spacing 0 = off.
     patch_min_contact: a patch past the centroid is centred only where its crop holds at
         least this share of imprint pixels (0: anywhere on the contact).
+    patch_disagree_confidence: a patch naming another material than the touch's (centre)
+        label needs at least this confidence, else it abstains (below min_confidence: off).
     cuda_graphs: on a GPU, replay the forward from CUDA graphs (perception/classifier/graphed.py).
     """
 
@@ -90,6 +92,7 @@ class MaterialClassifier:
         max_patches: int = 8,
         patch_probe: int = 0,
         patch_min_contact: float = 0.0,
+        patch_disagree_confidence: float = 0.0,
         cuda_graphs: bool = True,
     ) -> None:
         if not 0.0 <= min_confidence <= 1.0:
@@ -125,6 +128,11 @@ class MaterialClassifier:
         if not 0.0 <= patch_min_contact <= 1.0:
             raise ValueError(f"patch_min_contact={patch_min_contact} must be in [0, 1]")
         self.patch_min_contact = float(patch_min_contact)
+        if not 0.0 <= patch_disagree_confidence <= 1.0:
+            raise ValueError(
+                f"patch_disagree_confidence={patch_disagree_confidence} must be in [0, 1]"
+            )
+        self.patch_disagree_confidence = float(patch_disagree_confidence)
         self.cuda_graphs = bool(cuda_graphs)
         self._backgrounds: dict[str, np.ndarray] = {}
         self._model: torch.nn.Module | None = None
@@ -317,6 +325,9 @@ class MaterialClassifier:
         for reading, cs, label, p in zip(readings, centres, labels, probs):
             top, conf = p.argmax(axis=1), p.max(axis=1)
             top = np.where(conf >= self.min_confidence, top, NO_LABEL)
+            if label.label != NO_LABEL:  # naming another material than the centre's
+                doubt = (top != label.label) & (conf < self.patch_disagree_confidence)
+                top = np.where(doubt, NO_LABEL, top)
             if len(p) < len(cs):  # one material throughout: the unread patches take it
                 top = np.full(len(cs), top[0])
                 conf = np.full(len(cs), conf.min(), dtype=conf.dtype)
