@@ -9,7 +9,7 @@ these machines are shared and a figure means little without it.
 from __future__ import annotations
 
 import json
-from collections.abc import Sequence
+from collections.abc import Callable, Sequence
 from pathlib import Path
 
 from neuralfeels_sem.core.errors import DataError
@@ -227,8 +227,11 @@ def bench_lines(report: dict, source: str) -> list[str]:
     ]
 
 
-def speed_section(benches: Sequence[Path]) -> Sequence[str]:
-    """One speed table per report: each machine's figures apart, with what it was."""
+def speed_section(
+    benches: Sequence[Path], locate: Callable[[Path], Path] = lambda path: path
+) -> Sequence[str]:
+    """One speed table per report: each machine's figures apart, with what it was
+    (`locate`: where to read the report each path names)."""
     if not benches:
         return []
     intro = [
@@ -238,5 +241,5 @@ def speed_section(benches: Sequence[Path]) -> Sequence[str]:
     ]
     tables = []
     for bench in benches:
-        tables += [*bench_lines(load_bench(bench), bench.as_posix()), ""]
+        tables += [*bench_lines(load_bench(locate(bench)), bench.as_posix()), ""]
     return ["", "## Speed", "", *intro, *tables[:-1]]

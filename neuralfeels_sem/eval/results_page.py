@@ -33,7 +33,7 @@ since (results_drift.py); anything else makes it a setting.
 
 from __future__ import annotations
 
-from collections.abc import Sequence
+from collections.abc import Callable, Sequence
 from datetime import UTC, datetime
 from pathlib import Path
 
@@ -115,12 +115,7 @@ def code_text(runs: Sequence[Run]) -> str:
 
 def written_text(runs: Sequence[Run]) -> str:
     """When the runs finished: the UTC range of their metrics.json modification times."""
-    stamps = []
-    for run in runs:
-        try:
-            stamps.append((run.path / "metrics.json").stat().st_mtime)
-        except OSError:
-            continue
+    stamps = [run.finished_at for run in runs if run.finished_at is not None]
     if not stamps:
         return "finish time not known"
     low, high = (
@@ -273,7 +268,14 @@ def settings_sections(sources: Sequence[Source]) -> list[str]:
     return lines if other else lines + ["No runs with other settings.", ""]
 
 
-def render(sources: Sequence[Source], command: str, benches: Sequence[Path] = ()) -> str:
+def render(
+    sources: Sequence[Source],
+    command: str,
+    benches: Sequence[Path] = (),
+    locate: Callable[[Path], Path] = lambda path: path,
+) -> str:
+    """The page. `locate`: where to read each bench report named by `benches` (an archived
+    copy, eval/results_archive.py, where the file is gone)."""
     runs = table_runs(sources)
     # What tracked and active-touch runs are compared with: default-config runs, and runs
     # on generated objects with the simulator's pose (their own section's tables).
@@ -299,7 +301,7 @@ def render(sources: Sequence[Source], command: str, benches: Sequence[Path] = ()
         *resume_section(sources),
         *settings_sections(sources),
         *assets_section(),
-        *speed_section(benches),
+        *speed_section(benches, locate),
         "",
         "## Sources",
         "",
@@ -342,8 +344,10 @@ def build_command(
     dirs: Sequence[str],
     benches: Sequence[Path] = (),
     readme: Path | None = None,
+    archive: Path | None = None,
 ) -> str:
     parts = [COMMAND] + ([f"--out {display_path(out)}"] if out is not None else [])
     parts += [f"--readme {display_path(readme)}"] if readme is not None else []
+    parts += [f"--archive {display_path(archive)}"] if archive is not None else []
     parts += [f"--bench {display_path(bench)}" for bench in benches]
     return " ".join(parts + [display_path(Path(d)) for d in dirs])

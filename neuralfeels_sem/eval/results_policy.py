@@ -11,7 +11,6 @@ with a dagger.
 
 from __future__ import annotations
 
-import json
 from collections.abc import Sequence
 
 from neuralfeels_sem.eval.results_runs import Run, Source, get, reference_run
@@ -28,7 +27,6 @@ from neuralfeels_sem.eval.results_tables import (
 POLICY_KEY = "sensor.policy"
 TARGET_PCT = 90.0  # mean-class matching whose first crossing times the policies
 STAND_IN = "†"
-SUGGESTIONS = "touch_suggestions.json"
 
 
 def is_policy_run(run: Run) -> bool:
@@ -62,13 +60,9 @@ def policy_cells(run: Run | None, mark: str = "") -> list[str]:
 
 def regrasps(run: Run | None) -> int | None:
     """Regrasps the active run made (`touch_plan.regrasps` of its touch_suggestions.json)."""
-    if run is None:
+    if run is None or run.touch_plan is None:
         return None
-    try:
-        plan = json.loads((run.path / SUGGESTIONS).read_text()).get("touch_plan", {})
-    except (OSError, ValueError, AttributeError):
-        return None
-    found = plan.get("regrasps") if isinstance(plan, dict) else None
+    found = run.touch_plan.get("regrasps")
     return len(found) if isinstance(found, list) else None
 
 

@@ -51,10 +51,9 @@ def both(before: Run, after: Run, key: str) -> str:
 
 
 def checkpoint_mb(run: Run) -> str:
-    try:
-        return f"{(run.path / 'checkpoint.pt').stat().st_size / BYTES_PER_MB:.1f}"
-    except OSError:
+    if run.checkpoint_bytes is None:
         return "n/a"
+    return f"{run.checkpoint_bytes / BYTES_PER_MB:.1f}"
 
 
 def resume_row(before: Run, after: Run, varying: Sequence[str]) -> list[str]:

@@ -30,7 +30,8 @@ from neuralfeels_sem.eval.results_drift import (
 BOOKKEEPING_KEYS = ("seed", "experiment", "launcher", "perception", "viz.plots")
 BOOKKEEPING_VALUES = {"task": "map", "sensor": "sim"}
 GENERATED_NAME = re.compile(r"random_\d+")  # the name a generated object's metrics give it
-SINGLE_MATERIAL_FLOOR = 100.0 - 1e-6  # majority map's mean-class % on a one-material object
+SINGLE_MATERIAL_FLOOR = 100.0 - 1e-6
+SUGGESTIONS = "touch_suggestions.json"  # an active run's plan (pipeline/touch_advisor.py)  # majority map's mean-class % on a one-material object
 
 
 @dataclass
@@ -42,6 +43,12 @@ class Run:
     # Today's config for this run's object, preset and groups, flattened and unresolved
     # (set by tasks/results_page.py); None: settings are read from the overrides alone.
     today: dict | None = None
+    # Read from the run directory once, so the page needs nothing else from it
+    # (eval/results_archive.py keeps them when the directory is gone): when metrics.json was
+    # written (POSIX seconds), the final checkpoint's size, the active policy's touch plan.
+    finished_at: float | None = None
+    checkpoint_bytes: int | None = None
+    touch_plan: dict | None = None
 
     @property
     def object(self) -> str:
@@ -166,7 +173,26 @@ def _run(run_dir: Path, metrics: dict | None = None) -> Run:
         overrides=_overrides(run_dir),
         metrics=_load_json(run_dir / "metrics.json") if metrics is None else metrics,
         config=config if isinstance(config, dict) else None,
+        finished_at=_stat(run_dir / "metrics.json", "st_mtime"),
+        checkpoint_bytes=_stat(run_dir / "checkpoint.pt", "st_size"),
+        touch_plan=_touch_plan(run_dir / SUGGESTIONS),
     )
+
+
+def _stat(path: Path, field_name: str):
+    try:
+        return getattr(path.stat(), field_name)
+    except OSError:
+        return None
+
+
+def _touch_plan(path: Path) -> dict | None:
+    """`touch_plan` of an active run's touch_suggestions.json (None: none or unreadable)."""
+    try:
+        plan = json.loads(path.read_text()).get("touch_plan")
+    except (OSError, ValueError, AttributeError):
+        return None
+    return plan if isinstance(plan, dict) else None
 
 
 def _job_order(path: Path) -> tuple:

@@ -1,12 +1,15 @@
 """Write the results page (docs/results.md) from run outputs, judged against today's defaults.
 
     python -m neuralfeels_sem.tasks.results_page --out docs/results.md [--readme README.md]
-        [--bench bench.json] DIR [DIR ...]
+        [--bench bench.json] [--archive docs/results_data] DIR [DIR ...]
 
 The page itself is built by eval/results_page.py. This wiring composes today's config for
 each run's object, experiment, perception preset and config groups, so a run made before
 a default changed is shown with the setting it ran with (eval/results_drift.py), not as
-a default-config run.
+a default-config run. With --archive every source and bench report read is kept there
+(the project's page uses docs/results_data/, eval/results_archive.py), and one whose
+directory is gone is read from there, so the page can be regenerated from the repository
+alone.
 """
 
 from __future__ import annotations
@@ -23,11 +26,19 @@ from omegaconf import OmegaConf
 
 from neuralfeels_sem.configs import register_configs
 from neuralfeels_sem.core.errors import DataError, UserError
+from neuralfeels_sem.eval.results_archive import (
+    archived_bench,
+    load_archived,
+    save_bench,
+    save_source,
+)
 from neuralfeels_sem.eval.results_drift import group_overrides
 from neuralfeels_sem.eval.results_page import COMMAND, build_command, render, update_readme
-from neuralfeels_sem.eval.results_runs import Run, Source, load_source
+from neuralfeels_sem.eval.results_runs import Run, Source, display_path, load_source
 from neuralfeels_sem.utils.nested import flatten
 from neuralfeels_sem.utils.paths import REPO_DIR
+
+ARCHIVE_DIR = REPO_DIR / "docs" / "results_data"  # eval/results_archive.py
 
 
 def defaults_composer() -> Callable[[tuple[str, ...]], dict | None]:
@@ -63,6 +74,26 @@ def against_today(sources: Sequence[Source]) -> list[Source]:
         return [dataclasses.replace(s, runs=[judged(r) for r in s.runs]) for s in sources]
 
 
+def source_of(path: Path, archive: Path | None) -> Source:
+    """A run or sweep directory, archived on the way; where it is gone, its archived copy."""
+    if archive is None or path.is_dir():
+        source = load_source(path)
+        if archive is not None:
+            save_source(source, archive)
+        return source
+    kept = load_archived(path, archive)
+    if kept is None:
+        raise DataError(f"{path}: no such directory, and no copy of it in {archive}")
+    return kept
+
+
+def kept_bench(path: Path, archive: Path) -> Path:
+    """A bench report to read: kept in the archive when it exists, else the archived copy."""
+    if path.is_file():
+        save_bench(path, archive)
+    return archived_bench(path, archive)
+
+
 def write(text: str, out: Path) -> None:
     try:
         out.parent.mkdir(parents=True, exist_ok=True)
@@ -87,12 +118,23 @@ def main(argv: Sequence[str] | None = None) -> int:
         help="a `make bench` report (bench.json) for the speed section; repeat for reports "
         "from other machines (one with a GPU)",
     )
+    parser.add_argument(
+        "--archive",
+        type=Path,
+        help="keep each source's page inputs here, and read a source from here where its "
+        f"directory is gone (the project's: {display_path(ARCHIVE_DIR)})",
+    )
     parser.add_argument("dirs", nargs="+", metavar="DIR", help="run or sweep directory")
     args = parser.parse_args(argv)
+    archive = args.archive
     try:
-        sources = against_today([load_source(Path(d)) for d in args.dirs])
+        sources = against_today([source_of(Path(d), archive) for d in args.dirs])
+        locate = (lambda p: p) if archive is None else (lambda p: kept_bench(p, archive))
         page = render(
-            sources, build_command(args.out, args.dirs, args.bench, args.readme), args.bench
+            sources,
+            build_command(args.out, args.dirs, args.bench, args.readme, archive),
+            args.bench,
+            locate,
         )
         if args.out is None:
             sys.stdout.write(page)

@@ -93,6 +93,10 @@ PATCHED = [97.0, 91.0, 95.0, 99.0]  # mean-class per seed 0-3
 
 @pytest.fixture
 def object_sweep(tmp_path: Path) -> Path:
+    return write_object_sweep(tmp_path)
+
+
+def write_object_sweep(tmp_path: Path) -> Path:
     """multi_material-like sweep: patched_toy x 4 seeds, patchwork x 2, yarn_ball x 2, one failure."""
     sweep = tmp_path / "multirun" / "mm"
     k = 0

@@ -116,28 +116,39 @@ class MaterialClassifier:
         self.weights = weights
         self.input_size = int(input_size)
         self.crop_px = crop_px
-        if patch_spacing_px < 0 or max_patches < 1:
-            raise ValueError(
-                f"patch_spacing_px={patch_spacing_px} must be >= 0 and max_patches={max_patches} >= 1"
-            )
-        self.patch_spacing_px = int(patch_spacing_px)
-        self.max_patches = int(max_patches)
-        if patch_probe < 0:
-            raise ValueError(f"patch_probe={patch_probe} must be >= 0 (0: read every patch)")
-        self.patch_probe = int(patch_probe)
-        if not 0.0 <= patch_min_contact <= 1.0:
-            raise ValueError(f"patch_min_contact={patch_min_contact} must be in [0, 1]")
-        self.patch_min_contact = float(patch_min_contact)
-        if not 0.0 <= patch_disagree_confidence <= 1.0:
-            raise ValueError(
-                f"patch_disagree_confidence={patch_disagree_confidence} must be in [0, 1]"
-            )
-        self.patch_disagree_confidence = float(patch_disagree_confidence)
+        self._set_patch_reading(
+            patch_spacing_px, max_patches, patch_probe, patch_min_contact, patch_disagree_confidence
+        )
         self.cuda_graphs = bool(cuda_graphs)
         self._backgrounds: dict[str, np.ndarray] = {}
         self._model: torch.nn.Module | None = None
         self._ckpt: ClassifierCheckpoint | None = None
         self._device: torch.device | None = None
+
+    def _set_patch_reading(
+        self,
+        spacing_px: int,
+        max_patches: int,
+        probe: int,
+        min_contact: float,
+        disagree_confidence: float,
+    ) -> None:
+        """Check and keep the patch-reading arguments (see the class docstring)."""
+        if spacing_px < 0 or max_patches < 1:
+            raise ValueError(
+                f"patch_spacing_px={spacing_px} must be >= 0 and max_patches={max_patches} >= 1"
+            )
+        if probe < 0:
+            raise ValueError(f"patch_probe={probe} must be >= 0 (0: read every patch)")
+        if not 0.0 <= min_contact <= 1.0:
+            raise ValueError(f"patch_min_contact={min_contact} must be in [0, 1]")
+        if not 0.0 <= disagree_confidence <= 1.0:
+            raise ValueError(f"patch_disagree_confidence={disagree_confidence} must be in [0, 1]")
+        self.patch_spacing_px = int(spacing_px)
+        self.max_patches = int(max_patches)
+        self.patch_probe = int(probe)
+        self.patch_min_contact = float(min_contact)
+        self.patch_disagree_confidence = float(disagree_confidence)
 
     # ---- training side -------------------------------------------------------------
     def new_model(self) -> torch.nn.Module:
