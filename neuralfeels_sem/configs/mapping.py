@@ -45,6 +45,10 @@ class MappingConfig:
     # world by more; room for one mapped frame plus its perception on the 2-core CPU under
     # load (docs/usage.md).
     max_lag_s: float = 2.0
+    # Acquisition (rendering in sim, device reads on a rig) in a thread of its own, one
+    # frame ahead of classification and perception (pipeline/producer.py); false: one
+    # producer thread does both in turn.
+    acquire_thread: bool = False
     # How checkpoint.pt stores the hash tables (mapping/checkpoint_codec.py): auto = exact
     # float32 while that fits 40 MB, else compact (float16 table, 8-bit Adam moments);
     # exact = always bit-for-bit resumable; compact = always the small form.

@@ -62,6 +62,7 @@ class SessionSettings:
     progression_snapshots: int
     max_lag_s: float  # read at sensor.pace=realtime
     checkpoint_storage: str = "auto"  # mapping.checkpoint_storage (checkpoint_codec.py)
+    acquire_thread: bool = False  # mapping.acquire_thread (producer.py)
 
 
 class MappingSession:
@@ -192,9 +193,8 @@ class MappingSession:
         total = len(sensor) if len(sensor) > 0 else None
         snapshot_every = max(1, (total or 100) // max(1, self.settings.progression_snapshots))
         points = self.mapper.points
-        producer = FrameProducer(
-            sensor, self.classifier.classify, points.perceive, points.forget, self.last_index
-        )
+        producer = FrameProducer(sensor, self.classifier.classify, points.perceive, points.forget,
+                                 self.last_index, self.settings.acquire_thread)  # fmt: skip
         bar = tqdm(total=total, desc="map", unit="frame", dynamic_ncols=True)
         bar.update(self.last_index + 1)
         self.background = BackgroundEval(self.scorer, self._write_snapshot)

@@ -2,7 +2,10 @@
 per-frame perception that does not need the field, in a thread ahead of the mapper.
 
 The heavy calls (MuJoCo, pyrender, torch) release the GIL, so the mapper's optimiser
-steps run while the next frame is rendered and perceived. Frames reach the mapper through
+steps run while the next frame is rendered and perceived. With `acquire_thread` the
+acquisition (rendering in the simulator, device reads on a rig) runs in a thread of its
+own one frame ahead of classification and perception, so the three stages (acquire,
+perceive, map) work on three frames side by side where there are cores for them. Frames reach the mapper through
 a FrameQueue (pace.py): at sensor.pace=offline every frame, in order, the producer waiting
 for room; at realtime at the sensor's clock, the newest frame replacing an older one the
 mapper did not take yet. Nothing here reads the field, so the mapped frames and their
@@ -13,6 +16,7 @@ StreamEnd carrying it; the mapper's side ends the run with it.
 from __future__ import annotations
 
 import logging
+import queue
 import threading
 import time
 from collections.abc import Callable, Iterator
@@ -28,6 +32,14 @@ log = logging.getLogger(__name__)
 # the next is rendered, few enough that a stop or a failure wastes little work.
 OFFLINE_QUEUE = 2
 JOIN_TIMEOUT_S = 30.0  # a producer stuck in a device read is left behind (a daemon)
+POLL_S = 0.1  # how often a stage waiting on another looks at the stop flag
+
+
+class _Acquired:
+    """The end of the acquisition stage's frames: the sensor's last one or its error."""
+
+    def __init__(self, error: BaseException | None = None) -> None:
+        self.error = error
 
 
 class FrameProducer:
@@ -39,6 +51,8 @@ class FrameProducer:
         perceive: frame -> None, the field-free perception kept for the mapper
             (PointExtractor.perceive); `forget` drops it for a frame that will not be mapped.
         after_index: frames up to this index are already mapped (a resumed run).
+        acquire_thread: acquire frames in a thread of their own, one frame ahead of
+            classification and perception (False: one thread does both in turn).
     """
 
     def __init__(
@@ -48,6 +62,7 @@ class FrameProducer:
         perceive: Callable[[Frame], None],
         forget: Callable[[Frame], None],
         after_index: int = -1,
+        acquire_thread: bool = False,
     ) -> None:
         self.sensor = sensor
         self.classify = classify
@@ -58,41 +73,112 @@ class FrameProducer:
         self.queue = FrameQueue(capacity, keep_newest=self.realtime, on_drop=forget)
         self.clock: PaceClock | None = None
         self._stop = threading.Event()
-        self.cpu_s = 0.0  # the thread's CPU seconds, set when it ends
-        self._thread = threading.Thread(target=self._run, name="frame-producer", daemon=True)
+        self.cpu_s = 0.0  # the threads' CPU seconds, added as each ends
+        self._cpu_lock = threading.Lock()
+        # acquire -> perceive hand-over: one frame, so acquisition runs one frame ahead
+        self._acquired: queue.Queue | None = queue.Queue(maxsize=1) if acquire_thread else None
+        self._threads = [threading.Thread(target=self._run, name="frame-producer", daemon=True)]
+        if acquire_thread:
+            self._threads.append(
+                threading.Thread(target=self._acquire, name="frame-acquire", daemon=True)
+            )
 
     def start(self) -> None:
         if self.realtime:
             self.clock = PaceClock(float(self.sensor.frame_period_s), self.after_index + 1)
-        self._thread.start()
+        for thread in self._threads:
+            thread.start()
 
     def stop(self) -> None:
         """Ask the producer to stop and wait for it (it finishes the frame in hand)."""
         self._stop.set()
-        self._thread.join(JOIN_TIMEOUT_S)
-        if self._thread.is_alive():
-            log.warning("the frame producer did not stop within %.0f s; leaving it", JOIN_TIMEOUT_S)
+        for thread in self._threads:
+            thread.join(JOIN_TIMEOUT_S)
+            if thread.is_alive():
+                log.warning(
+                    "%s did not stop within %.0f s; leaving it", thread.name, JOIN_TIMEOUT_S
+                )
 
     def _frames(self) -> Iterator[Frame]:
+        """The sensor's frames (from the acquisition thread when there is one)."""
+        if self._acquired is not None:
+            return self._handed_over()
+        return self._sensor_frames(self._mapper_ready)
+
+    def _sensor_frames(self, ready: Callable[[], None]) -> Iterator[Frame]:
         if self.clock is not None:
-            return self.sensor.frames_from_clock(self._next_due_index)
+            return self.sensor.frames_from_clock(lambda: self._next_due_index(ready))
         return (f for f in self.sensor.frames() if f.index > self.after_index)
 
-    def _next_due_index(self) -> int:
-        """Realtime: the frame to make next, once the mapper has taken the last one.
+    def _next_due_index(self, ready: Callable[[], None]) -> int:
+        """Realtime: the frame to make next, once the stage after this one is ready for it.
 
         Perceiving frames the mapper will never take would take the CPU from the mapper
         (on 2 cores); this way the next frame is made while the mapper maps the last one.
         """
-        self.queue.wait_empty(self._stop)
+        ready()
         return self.clock.due_index()
+
+    def _mapper_ready(self) -> None:
+        """Until the mapper has taken the last perceived frame."""
+        self.queue.wait_empty(self._stop)
+
+    def _perception_ready(self) -> None:
+        """Until the perceiving thread has taken the last acquired frame."""
+        while not self._acquired.empty() and not self._stop.is_set():
+            time.sleep(POLL_S / 10)
+
+    def _acquire(self) -> None:
+        """The acquisition thread: the sensor's frames into the hand-over, then its end."""
+        cpu_start = time.thread_time()
+        end = _Acquired()
+        try:
+            for frame in self._sensor_frames(self._perception_ready):
+                if not self._hand_over(frame):
+                    return
+        except BaseException as exc:  # noqa: BLE001 - the perceiving thread ends the stream with it
+            end = _Acquired(exc)
+        finally:
+            self._hand_over(end)
+            release_thread_gl()
+            self._add_cpu(time.thread_time() - cpu_start)
+
+    def _hand_over(self, item: Frame | _Acquired) -> bool:
+        """Put `item` for the perceiving thread, waiting for room; False once stopped."""
+        while not self._stop.is_set():
+            try:
+                self._acquired.put(item, timeout=POLL_S)
+                return True
+            except queue.Full:
+                continue
+        return False
+
+    def _handed_over(self) -> Iterator[Frame]:
+        """The acquired frames, in order; the acquisition's error is raised here. In
+        realtime a frame is taken only once the mapper has taken the last one."""
+        while not self._stop.is_set():
+            if self.clock is not None:
+                self._mapper_ready()
+            try:
+                item = self._acquired.get(timeout=POLL_S)
+            except queue.Empty:
+                continue
+            if isinstance(item, _Acquired):
+                if item.error is not None:
+                    raise item.error
+                return
+            yield item
+
+    def _add_cpu(self, seconds: float) -> None:
+        with self._cpu_lock:
+            self.cpu_s += seconds
 
     def _run(self) -> None:
         cpu_start = time.thread_time()
         try:
             self._produce()
         finally:
-            self.cpu_s = time.thread_time() - cpu_start
+            self._add_cpu(time.thread_time() - cpu_start)
 
     def _produce(self) -> None:
         dropped, expected, first = 0, self.after_index + 1, True

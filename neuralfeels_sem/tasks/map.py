@@ -121,6 +121,7 @@ def build_session(
         progression_snapshots=int(cfg.viz.progression_snapshots),
         max_lag_s=float(cfg.mapping.max_lag_s),
         checkpoint_storage=str(cfg.mapping.checkpoint_storage),
+        acquire_thread=bool(cfg.mapping.acquire_thread),
     )
     return MappingSession(
         mapper,

@@ -97,18 +97,24 @@ def _sequential_reference(cfg) -> dict:
         sensor.close()
 
 
-def test_offline_pipeline_gives_the_sequential_loops_figures(tmp_path) -> None:
-    cfg = compose_config(SMALL)
+ACQUIRE = pytest.mark.parametrize("acquire", [False, True], ids=["one-thread", "acquire-thread"])
+
+
+@ACQUIRE
+def test_offline_pipeline_gives_the_sequential_loops_figures(tmp_path, acquire) -> None:
+    # With acquisition in a thread of its own too: the same frames, labels and figures.
+    cfg = compose_config([*SMALL, f"mapping.acquire_thread={acquire}"])
     metrics = _map(cfg, tmp_path)
     expected = json.loads(json.dumps(_sequential_reference(cfg), default=float))
     got = json.loads((tmp_path / "metrics.json").read_text())
     assert got["pace"] == "offline" and got["frames_dropped"] == 0
     assert got["lag_max_s"] is None and got["idle_steps"] == 0
     assert metrics["frames"] == 6 and got["trained_on"]["frames"] == 6
-    # Each thread's CPU time: some, and no more than the loop's wall time (one thread each;
-    # the producer starts with the loop and is joined at its end).
-    for key in ("producer_cpu_s", "mapper_cpu_s"):
-        assert 0.0 < got[key] <= got["wall_s"] + 0.5, (key, got[key], got["wall_s"])
+    # Each side's CPU time: some, and no more than the loop's wall time per thread (the
+    # producer's threads start with the loop and are joined at its end).
+    threads = {"producer_cpu_s": 2 if acquire else 1, "mapper_cpu_s": 1}
+    for key, n in threads.items():
+        assert 0.0 < got[key] <= n * got["wall_s"] + 0.5, (key, got[key], got["wall_s"])
     for key in SAME_PERCEPTION:  # segmentation_ms_mean is a timing
         assert got["perception"][key] == expected["perception"][key], key
     for key in SAME_FIGURES:
@@ -117,9 +123,11 @@ def test_offline_pipeline_gives_the_sequential_loops_figures(tmp_path) -> None:
     assert got["matching_mean_class_pct"] > 0 and got["trained_on"]["labelled_touches"] > 0
 
 
-def test_realtime_keeps_within_the_lag_bound_and_counts_its_drops(tmp_path) -> None:
+@ACQUIRE
+def test_realtime_keeps_within_the_lag_bound_and_counts_its_drops(tmp_path, acquire) -> None:
     # 10 fps of sensor time on a toy mapper that cannot keep up under test load.
-    cfg = compose_config([*SMALL, "sensor.fps=10", "sensor.pace=realtime", "mapping.max_lag_s=2.0"])
+    pace = ["sensor.fps=10", "sensor.pace=realtime", "mapping.max_lag_s=2.0"]
+    cfg = compose_config([*SMALL, *pace, f"mapping.acquire_thread={acquire}"])
     metrics = _map(cfg, tmp_path)
     got = json.loads((tmp_path / "metrics.json").read_text())
     assert got["pace"] == "realtime" and got["max_lag_s"] == 2.0
@@ -156,13 +164,16 @@ class _FailingSensor:
 
 
 @pytest.mark.parametrize(
-    "error, raised",
-    [(RuntimeError("renderer lost its context\nsecond line"), FrameSourceError),
-     (DataError("frame 3: frames.jsonl is damaged"), DataError)],
-    ids=["crash", "user-error"],
+    "error, raised, acquire",
+    [(RuntimeError("renderer lost its context\nsecond line"), FrameSourceError, False),
+     (RuntimeError("renderer lost its context\nsecond line"), FrameSourceError, True),
+     (DataError("frame 3: frames.jsonl is damaged"), DataError, False)],
+    ids=["crash", "crash-in-acquire-thread", "user-error"],
 )  # fmt: skip
-def test_a_failing_producer_ends_the_run_and_keeps_what_was_mapped(tmp_path, error, raised) -> None:
-    cfg = compose_config(SMALL)
+def test_a_failing_producer_ends_the_run_and_keeps_what_was_mapped(
+    tmp_path, error, raised, acquire
+) -> None:
+    cfg = compose_config([*SMALL, f"mapping.acquire_thread={acquire}"])
     with pytest.raises(raised) as caught:
         _map(cfg, tmp_path, wrap=lambda s: _FailingSensor(s, 3, error))
     message = str(caught.value)
