@@ -123,7 +123,7 @@ def test_offline_pipeline_gives_the_sequential_loops_figures(tmp_path, acquire) 
     assert got["matching_mean_class_pct"] > 0 and got["trained_on"]["labelled_touches"] > 0
 
 
-@ACQUIRE
+@pytest.mark.parametrize("acquire", [False, pytest.param(True, marks=pytest.mark.slow)])
 def test_realtime_keeps_within_the_lag_bound_and_counts_its_drops(tmp_path, acquire) -> None:
     # 10 fps of sensor time on a toy mapper that cannot keep up under test load.
     pace = ["sensor.fps=10", "sensor.pace=realtime", "mapping.max_lag_s=2.0"]
@@ -166,7 +166,8 @@ class _FailingSensor:
 @pytest.mark.parametrize(
     "error, raised, acquire",
     [(RuntimeError("renderer lost its context\nsecond line"), FrameSourceError, False),
-     (RuntimeError("renderer lost its context\nsecond line"), FrameSourceError, True),
+     pytest.param(RuntimeError("renderer lost its context\nsecond line"), FrameSourceError, True,
+                  marks=pytest.mark.slow),
      (DataError("frame 3: frames.jsonl is damaged"), DataError, False)],
     ids=["crash", "crash-in-acquire-thread", "user-error"],
 )  # fmt: skip
