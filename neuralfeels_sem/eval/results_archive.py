@@ -82,18 +82,8 @@ def load_archived(path: Path, archive_dir: Path) -> Source | None:
         raise DataError(
             f"{file}: archive format {record.get('format')}, this version reads {FORMAT}"
         )
-    runs = [
-        Run(
-            path=Path(r["path"]),
-            overrides=r["overrides"],
-            metrics=r["metrics"],
-            config=r["config"],
-            finished_at=r["finished_at"],
-            checkpoint_bytes=r["checkpoint_bytes"],
-            touch_plan=r["touch_plan"],
-        )
-        for r in record["runs"]
-    ]
+    # a record's keys are Run's fields (_run_record)
+    runs = [Run(**{**r, "path": Path(r["path"])}) for r in record["runs"]]
     return Source(Path(record["path"]), record["kind"], runs, record["failed"], record["missing"])
 
 
