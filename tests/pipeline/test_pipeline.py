@@ -97,7 +97,13 @@ def _sequential_reference(cfg) -> dict:
         sensor.close()
 
 
-ACQUIRE = pytest.mark.parametrize("acquire", [False, True], ids=["one-thread", "acquire-thread"])
+# The acquisition-thread variants run in `make test-all` (slow): the setting is off by
+# default, and tests/pipeline/test_producer.py covers its thread hand-over quickly.
+ACQUIRE = pytest.mark.parametrize(
+    "acquire",
+    [False, pytest.param(True, marks=pytest.mark.slow)],
+    ids=["one-thread", "acquire-thread"],
+)
 
 
 @ACQUIRE
@@ -123,7 +129,7 @@ def test_offline_pipeline_gives_the_sequential_loops_figures(tmp_path, acquire) 
     assert got["matching_mean_class_pct"] > 0 and got["trained_on"]["labelled_touches"] > 0
 
 
-@pytest.mark.parametrize("acquire", [False, pytest.param(True, marks=pytest.mark.slow)])
+@ACQUIRE
 def test_realtime_keeps_within_the_lag_bound_and_counts_its_drops(tmp_path, acquire) -> None:
     # 10 fps of sensor time on a toy mapper that cannot keep up under test load.
     pace = ["sensor.fps=10", "sensor.pace=realtime", "mapping.max_lag_s=2.0"]
