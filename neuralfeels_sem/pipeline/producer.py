@@ -77,6 +77,8 @@ class FrameProducer:
         self._cpu_lock = threading.Lock()
         # acquire -> perceive hand-over: one frame, so acquisition runs one frame ahead
         self._acquired: queue.Queue | None = queue.Queue(maxsize=1) if acquire_thread else None
+        self._streaming = threading.Event()  # set when the first frame is perceived
+        self._handed_any = False  # the acquisition thread has handed over a frame
         self._threads = [threading.Thread(target=self._run, name="frame-producer", daemon=True)]
         if acquire_thread:
             self._threads.append(
@@ -124,8 +126,12 @@ class FrameProducer:
         self.queue.wait_empty(self._stop)
 
     def _perception_ready(self) -> None:
-        """Until the perceiving thread has taken the last acquired frame."""
-        while not self._acquired.empty() and not self._stop.is_set():
+        """Until the perceiving thread has taken the last acquired frame, and the stream's
+        clock has started (the first frame perceived: the clock restarts there, so a due
+        index asked before would count the models' loading as stream time)."""
+        while not self._stop.is_set() and not (
+            self._acquired.empty() and (self._streaming.is_set() or not self._handed_any)
+        ):
             time.sleep(POLL_S / 10)
 
     def _acquire(self) -> None:
@@ -136,6 +142,7 @@ class FrameProducer:
             for frame in self._sensor_frames(self._perception_ready):
                 if not self._hand_over(frame):
                     return
+                self._handed_any = True
         except BaseException as exc:  # noqa: BLE001 - the perceiving thread ends the stream with it
             end = _Acquired(exc)
         finally:
@@ -199,6 +206,7 @@ class FrameProducer:
                 self.perceive(frame)
                 if self.clock is not None and first:
                     self.clock.restart()  # the stream starts with its first frame ready
+                self._streaming.set()
                 first = False
                 if not self.queue.put(PerceivedFrame(frame, labels, dropped), self._stop):
                     return

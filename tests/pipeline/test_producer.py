@@ -89,3 +89,47 @@ def test_an_acquisition_error_ends_the_stream_with_it() -> None:
     producer.stop()
     assert [i.frame.index for i in items[:-1]] == [0]
     assert isinstance(items[-1].error, OSError) and "unplugged" in str(items[-1].error)
+
+
+class _Streamed(_Endless):
+    """A realtime sensor that goes straight to the due frame, as the simulator does; its
+    first frame takes `first_s` to make (renderers opening)."""
+
+    pace = "realtime"
+    frame_period_s = 0.05
+
+    def __init__(self, limit: int, first_s: float) -> None:
+        super().__init__(limit)
+        self.first_s = first_s
+
+    def frames_from_clock(self, due_index):
+        index = 0
+        while (index := max(index, due_index())) < len(self):
+            if index == 0:
+                threading.Event().wait(self.first_s)
+            yield SimpleNamespace(index=index, tactile={})
+            index += 1
+
+
+def test_realtime_acquisition_waits_for_the_stream_to_start() -> None:
+    """The clock restarts when the first frame is ready for the mapper (renderers and models
+    loaded): the acquisition thread must not ask for the next due frame before, or that
+    set-up would count as stream time and the stream's first second would be skipped."""
+    loaded = threading.Event()
+
+    def perceive(frame) -> None:  # the first frame's perception loads the models: 0.3 s
+        if not loaded.is_set():
+            loaded.set()
+            threading.Event().wait(0.3)
+
+    producer = FrameProducer(
+        _Streamed(limit=40, first_s=0.5), lambda r: [], perceive, lambda f: None,
+        acquire_thread=True,
+    )  # fmt: skip
+    producer.start()
+    first, second = producer.queue.get(timeout=5.0), producer.queue.get(timeout=5.0)
+    producer.stop()
+    assert first.frame.index == 0
+    # due from the restart, not from start(): 0.5 s of the first render and 0.3 s of
+    # loading are 16 periods
+    assert second.frame.index <= 3, second.frame.index
