@@ -116,23 +116,22 @@ def nearest_press_truth(obj, matching: MatchingEvaluator, touches: TouchSet) -> 
 def used_point_truth(obj, matching: MatchingEvaluator, touches: TouchSet) -> dict:
     """Share of the contact points the material loss trained on whose label is their true
     material, and the oracle map that gives each sample the true material of the nearest
-    such point."""
-    used = [(p, touches.used_labels_of(t)) for t, p in enumerate(touches.points)]
-    points = np.concatenate([p[lab >= 0] for p, lab in used]) if used else np.zeros((0, 3))
-    if not len(points):
-        return {"used_point_accuracy_pct": None, "nearest_used_point_truth_mean_class_pct": None}
-    labels = np.concatenate([lab[lab >= 0] for _, lab in used])
+    such point (both None without such points in the scored regions)."""
+    out = {"used_point_accuracy_pct": None, "nearest_used_point_truth_mean_class_pct": None}
+    if not touches.points:
+        return out
+    used = [touches.used_labels_of(t) for t in range(len(touches.points))]
+    points = np.concatenate([p[lab >= 0] for p, lab in zip(touches.points, used)])
+    labels = np.concatenate([lab[lab >= 0] for lab in used])
     truth = obj.labels_at(points)
     scored = truth >= 0
     if not scored.any():
-        return {"used_point_accuracy_pct": None, "nearest_used_point_truth_mean_class_pct": None}
+        return out
     nearest = cKDTree(points[scored]).query(matching.points)[1]
-    return {
-        "used_point_accuracy_pct": float(100.0 * np.mean(labels[scored] == truth[scored])),
-        "nearest_used_point_truth_mean_class_pct": matching.evaluate_labels(truth[scored][nearest])[
-            "matching_mean_class_pct"
-        ],
-    }
+    nearest_truth = matching.evaluate_labels(truth[scored][nearest])
+    out["used_point_accuracy_pct"] = float(100.0 * np.mean(labels[scored] == truth[scored]))
+    out["nearest_used_point_truth_mean_class_pct"] = nearest_truth["matching_mean_class_pct"]
+    return out
 
 
 def summary_line(row: dict) -> str:

@@ -93,8 +93,7 @@ def save_bench(path: Path, archive_dir: Path) -> None:
 
 
 def archived_bench(path: Path, archive_dir: Path) -> Path:
-    """`path` where it exists, else its archived copy where there is one, else `path`."""
-    if path.is_file():
-        return path
+    """The archived copy of the bench report at `path` where there is one, else `path`
+    (whose reading then fails with load_bench's one line)."""
     copy = archive_dir / archive_name(display_path(path), "")
     return copy if copy.is_file() else path

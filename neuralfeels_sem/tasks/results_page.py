@@ -91,6 +91,7 @@ def kept_bench(path: Path, archive: Path) -> Path:
     """A bench report to read: kept in the archive when it exists, else the archived copy."""
     if path.is_file():
         save_bench(path, archive)
+        return path
     return archived_bench(path, archive)
 
 

@@ -1,0 +1,45 @@
+"""map_errors' trained-point figures: how right the readings the map trained on are, and
+what the same points would map read perfectly."""
+
+from __future__ import annotations
+
+import numpy as np
+import pytest
+
+from neuralfeels_sem.bench.map_errors import used_point_truth
+from neuralfeels_sem.eval.error_sources import TouchSet
+from neuralfeels_sem.eval.matching import MatchingEvaluator
+from tests.eval.objects import two_material_sphere
+from tests.eval.test_error_sources import FABRIC, PLASTIC, _press
+
+
+@pytest.fixture(scope="module")
+def sphere():
+    obj = two_material_sphere()
+    return obj, MatchingEvaluator(obj, num_samples=4000, seed=0)
+
+
+def test_used_points_are_judged_by_their_truth_and_mapped_read_perfectly(sphere) -> None:
+    obj, matching = sphere
+    plastic, fabric = _press(+1.0), _press(-1.0)
+    # The fabric press is read wrong on a quarter of its points; a third press is unused.
+    fabric_read = np.full(32, FABRIC)
+    fabric_read[:8] = PLASTIC
+    touches = TouchSet(
+        [plastic, fabric, _press(-1.0, x=0.5)],
+        [PLASTIC, FABRIC, PLASTIC],
+        [True, True, False],
+        used_point_labels=[np.full(32, PLASTIC), fabric_read, np.full(32, -1)],
+    )
+    got = used_point_truth(obj, matching, touches)
+    assert got["used_point_accuracy_pct"] == pytest.approx(100.0 * 56 / 64)
+    # Read perfectly, one press on each side gives every sample its side's material.
+    assert got["nearest_used_point_truth_mean_class_pct"] == pytest.approx(100.0)
+
+
+def test_without_trained_points_the_figures_are_none(sphere) -> None:
+    obj, matching = sphere
+    empty = {"used_point_accuracy_pct": None, "nearest_used_point_truth_mean_class_pct": None}
+    assert used_point_truth(obj, matching, TouchSet([], [], [])) == empty
+    unused = TouchSet([_press(1.0)], [PLASTIC], [False])
+    assert used_point_truth(obj, matching, unused) == empty
