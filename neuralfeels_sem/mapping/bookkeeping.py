@@ -25,6 +25,7 @@ class TrainingLog:
             "tactile_points": self.tactile_points_total,
             "touches": touches.num_touches,
             "labelled_touches": touches.num_labelled,
+            "fused_touches": touches.num_fused,
             "outvoted_touches": touches.num_outvoted,
             "optimizer_steps": self.steps,
         }

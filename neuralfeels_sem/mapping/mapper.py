@@ -34,6 +34,7 @@ from neuralfeels_sem.mapping.rng_state import capture_rng, restore_rng
 from neuralfeels_sem.mapping.step_policy import STEPS_POLICIES, steps_for, surprise
 from neuralfeels_sem.perception.camera_segmentation import SegmentationConfig
 from neuralfeels_sem.perception.tactile_depth import TactileDepth, TactileDepthConfig
+from neuralfeels_sem.mapping.press_fusion import PressFusion
 from neuralfeels_sem.perception.touch import TouchLabel
 from neuralfeels_sem.utils.frozen import frozen_parameters
 
@@ -101,6 +102,15 @@ class MapperConfig:
     # 0 = off. 3: on 29 development objects it keeps the one press that is all a small
     # part gets, at a small cost on the shipped objects (docs/field_and_mapper.md).
     label_vote_steady_frames: int = 3
+    # Press fusion (press_fusion.py): a touch the classifier abstained on takes the class
+    # that the presses within fuse_radius metres read together (at least fuse_min_presses
+    # presses, pooled probability >= fuse_confidence), at fuse_weight; fuse_edge: touches
+    # abstained on at the sensor's edge too. fuse_radius 0 = off.
+    fuse_radius: float = 0.0
+    fuse_min_presses: int = 2
+    fuse_confidence: float = 0.9
+    fuse_weight: float = 1.0
+    fuse_edge: bool = False
     window_recent: int = 4  # keyframes: the most recent ones in every window
     window_by_loss: int = 4  # plus older ones drawn by their last loss
     max_keyframes: int = 200
@@ -146,6 +156,7 @@ class MapperConfig:
             raise ValueError(
                 f"mapping.mapper.label_vote_min_agreement={self.label_vote_min_agreement} must be in (0, 1]"
             )
+        PressFusion.from_config(self)  # checks the fuse_* settings
         if self.max_keyframes <= self.window_recent:
             raise ValueError(
                 f"mapping.mapper.max_keyframes={self.max_keyframes} must exceed window_recent ({self.window_recent})"

@@ -19,6 +19,7 @@ from neuralfeels_sem.core.frame import Frame, TactileReading
 from neuralfeels_sem.core.geometry import invert_pose, project, transform_points
 from neuralfeels_sem.mapping.keyframes import KeyframeBuffer
 from neuralfeels_sem.mapping.label_vote import LabelVote
+from neuralfeels_sem.mapping.press_fusion import PressFusion
 from neuralfeels_sem.mapping.sampling import subsample
 from neuralfeels_sem.mapping.space_prior import SpaceCarvingPrior
 from neuralfeels_sem.mapping.touch_memory import TouchBuffer
@@ -49,7 +50,9 @@ class MapMemory:
         self.keyframes = KeyframeBuffer(
             config.max_keyframes, config.window_recent, config.window_by_loss
         )
-        self.touches = TouchBuffer(device, LabelVote.from_config(config))
+        self.touches = TouchBuffer(
+            device, LabelVote.from_config(config), PressFusion.from_config(config)
+        )
         self.space_prior = (
             SpaceCarvingPrior(
                 float(bound), center, resolution=config.space_prior_resolution, seed=config.seed
@@ -117,6 +120,7 @@ class MapMemory:
         if self.space_prior is not None:
             self.space_prior.add_surface(kept)
         labels, weights = touch_point_labels(frame.tactile[finger], kept, pose, label)
+        read = label is not None and label.contact and label.probs is not None
         self.touches.add(
             self._tensor(kept),
             self._tensor(axis),
@@ -124,6 +128,8 @@ class MapMemory:
             self._tensor(weights),
             finger=finger,
             frame_index=frame.index,
+            probs=self._tensor(label.probs) if read else None,
+            at_edge=read and label.at_edge,
         )
         return len(keep)
 

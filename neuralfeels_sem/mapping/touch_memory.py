@@ -1,8 +1,9 @@
 """What the mapper remembers of touch: every touch, replayed for the whole run.
 
 Touches are sparse and carry the material labels, so every touch is kept (object-frame
-points, float32 on the mapper's device). The label vote (label_vote.py) decides which
-labelled touches the material loss uses.
+points, float32 on the mapper's device). Press fusion (press_fusion.py) labels touches the
+classifier abstained on from the presses around them; the label vote (label_vote.py)
+decides which labelled touches the material loss uses.
 """
 
 from __future__ import annotations
@@ -12,7 +13,8 @@ import bisect
 import torch
 
 from neuralfeels_sem.mapping.keyframes import check_points
-from neuralfeels_sem.mapping.label_vote import LabelVote
+from neuralfeels_sem.mapping.label_vote import LabelVote, press_events
+from neuralfeels_sem.mapping.press_fusion import PressFusion
 
 # A material counts as read by a touch when at least this share of its labelled points
 # name it: one stray patch at the rim of an imprint does not make the touch back it.
@@ -35,10 +37,17 @@ class TouchBuffer:
     contact patch has fewer pixels), so uniform sampling over points is uniform over touches.
     """
 
-    def __init__(self, device: torch.device, vote: LabelVote | None = None) -> None:
-        """`vote`: which labelled touches to leave out of the material loss (None: none)."""
+    def __init__(
+        self,
+        device: torch.device,
+        vote: LabelVote | None = None,
+        fusion: PressFusion | None = None,
+    ) -> None:
+        """`vote`: which labelled touches to leave out of the material loss (None: none);
+        `fusion`: how abstained touches are labelled from the presses around them (None: never)."""
         self.device = device
         self.vote = vote
+        self.fusion = fusion
         self._num_outvoted = 0  # set with the cached tensors; read through num_outvoted
         self._points: list[torch.Tensor] = []
         self._axes: list[torch.Tensor] = []
@@ -51,12 +60,17 @@ class TouchBuffer:
         self._item_centroid: list[torch.Tensor] = []
         self._fingers: list[str | None] = []  # which finger made each touch (None: unknown)
         self._frames: list[int] = []  # frame index of each touch
+        # The classifier's class probabilities of each touch ((C,); empty: none, e.g. no
+        # contact) and whether it abstained for an imprint along the sensor's edge.
+        self._probs: list[torch.Tensor] = []
+        self._at_edge: list[bool] = []
         # Every frame the buffer was offered, ascending: presses are counted in these, so a
         # press keeps its frames together when realtime pacing maps every other frame.
         self._mapped: list[int] = []
         self._cat: dict[str, torch.Tensor] | None = None
         self.num_touches = 0
         self.num_labelled = 0
+        self.num_fused = 0  # of num_labelled: labelled by press fusion
 
     def note_frame(self, frame_index: int) -> None:
         """A frame was mapped (with or without touches): press gaps count mapped frames."""
@@ -80,12 +94,15 @@ class TouchBuffer:
         weight: float | torch.Tensor,
         finger: str | None = None,
         frame_index: int = -1,
+        probs: torch.Tensor | None = None,
+        at_edge: bool = False,
     ) -> None:
         """Store one touch. `label` -1 keeps it for geometry only; a (n,) tensor gives each
         point its own label (-1: none) and `weight` then is (n,) too (patch readings). The
         vote judges each material the touch reads on its own (`point_labels_used`).
         `finger` and `frame_index` tell the vote which touches are frames of one press (None:
-        a press of its own)."""
+        a press of its own). `probs` (C,): the classifier's reading, pooled by press fusion;
+        `at_edge`: it abstained because the imprint lies along the sensor's edge."""
         check_points(points, "touch points")
         n = points.shape[0]
         device = points.device
@@ -96,6 +113,10 @@ class TouchBuffer:
         self._add_items(len(self._points), points, labels)
         self._fingers.append(finger)
         self._frames.append(int(frame_index))
+        self._probs.append(
+            torch.zeros(0, device=device) if probs is None else probs.to(device, torch.float32)
+        )
+        self._at_edge.append(bool(at_edge))
         self.note_frame(frame_index)
         self._points.append(points)
         self._axes.append(axis.reshape(1, 3).expand(n, 3).clone())
@@ -103,6 +124,42 @@ class TouchBuffer:
         self._weights.append(weights)
         self.num_touches += 1
         self.num_labelled += int(len(read) > 0)
+        self._cat = None
+        if probs is not None and self.fusion is not None and self.fusion.active:
+            self._fuse()
+
+    def _fuse(self) -> None:
+        """Label the abstained touches that the presses around them now read surely enough."""
+        fusion = self.fusion
+        pooled = [
+            t
+            for t, p in enumerate(self._probs)
+            if len(p) and (fusion.include_edge or not self._at_edge[t])
+        ]
+        open_ = [i for i, t in enumerate(pooled) if self._touch_labels[t] < 0]
+        if not open_:
+            return
+        events = press_events(
+            [self._fingers[t] for t in pooled], self._press_frames(pooled), fusion.press_gap
+        )
+        labels, probability = fusion.fuse(
+            torch.stack([self._points[t].mean(0) for t in pooled]),
+            torch.stack([self._probs[t] for t in pooled]),
+            events.to(self.device),
+            torch.tensor(open_, device=self.device),
+        )
+        for i, label, p in zip(open_, labels.tolist(), probability.tolist()):
+            if label >= 0:
+                self._relabel(pooled[i], label, p * fusion.weight)
+
+    def _relabel(self, touch: int, label: int, weight: float) -> None:
+        """Give an unlabelled touch one label for all its points (press fusion)."""
+        self._labels[touch] = torch.full_like(self._labels[touch], label)
+        self._weights[touch] = torch.full_like(self._weights[touch], weight)
+        self._touch_labels[touch] = label
+        self._add_items(touch, self._points[touch], self._labels[touch])
+        self.num_labelled += 1
+        self.num_fused += 1
         self._cat = None
 
     def tensors(self) -> dict[str, torch.Tensor]:
@@ -238,8 +295,11 @@ class TouchBuffer:
             "fingers": list(self._fingers),
             "frames": list(self._frames),
             "mapped_frames": list(self._mapped),
+            "probs": list(self._probs),
+            "at_edge": list(self._at_edge),
             "num_touches": self.num_touches,
             "num_labelled": self.num_labelled,
+            "num_fused": self.num_fused,
         }
 
     def load_state_dict(self, state: dict) -> None:
@@ -259,6 +319,11 @@ class TouchBuffer:
         self._frames = [int(f) for f in state.get("frames", [-1] * len(self._points))]
         # Checkpoints from before mapped frames were recorded: the frames touches came in.
         self._mapped = [int(f) for f in state.get("mapped_frames", sorted(set(self._frames)))]
+        # Checkpoints from before press fusion: no touch has probabilities.
+        empty = torch.zeros(0, device=self.device)
+        self._probs = [t.to(self.device) for t in state.get("probs", [empty] * len(self._points))]
+        self._at_edge = [bool(e) for e in state.get("at_edge", [False] * len(self._points))]
         self.num_touches = int(state["num_touches"])
         self.num_labelled = int(state["num_labelled"])
+        self.num_fused = int(state.get("num_fused", 0))
         self._cat = None

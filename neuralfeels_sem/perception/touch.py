@@ -24,6 +24,9 @@ class TouchLabel:
     confidence: float = 0.0  # probability of the predicted class
     probs: np.ndarray | None = None  # (C,) class probabilities, None without contact
     low_confidence: bool = False
+    # The imprint lies mostly along the sensor's border (classifier.max_edge_share): the
+    # reading is not trusted, whatever its confidence.
+    at_edge: bool = False
     # Patch readings (classifier.patch_spacing_px > 0, perception/classifier/patches.py):
     # per contact pixel, the material of the nearest patch the classifier read (NO_LABEL:
     # none) and that patch's confidence, both (H, W). None: one label for the whole touch.

@@ -105,7 +105,8 @@ def test_counts_losses_and_warmup() -> None:
         mapper.add_frame(frame, labels)
     assert mapper.trained_on == {
         "frames": 3, "camera_points": 1500, "tactile_points": 6 * 64, "touches": 6,
-        "labelled_touches": 5, "outvoted_touches": 0, "optimizer_steps": 5 + 2 + 2,
+        "labelled_touches": 5, "fused_touches": 0, "outvoted_touches": 0,
+        "optimizer_steps": 5 + 2 + 2,
     }  # fmt: skip
 
 

@@ -296,6 +296,7 @@ class MaterialClassifier:
                 top = int(p.argmax())
                 labels[i].probs = p
                 labels[i].confidence = float(p[top])
+                labels[i].at_edge = at_edge[i]
                 if p[top] < self.min_confidence or (at_edge[i] and not self.edge_label_weight):
                     labels[i].low_confidence = True
                     labels[i].label = NO_LABEL
