@@ -30,11 +30,11 @@ from neuralfeels_sem.mapping.bookkeeping import TrainingLog
 from neuralfeels_sem.mapping.frame_points import CAMERA_MASKS, PointExtractor
 from neuralfeels_sem.mapping.memory import MapMemory
 from neuralfeels_sem.mapping.objective import TERMS, MapperObjective
+from neuralfeels_sem.mapping.press_fusion import PressFusion
 from neuralfeels_sem.mapping.rng_state import capture_rng, restore_rng
 from neuralfeels_sem.mapping.step_policy import STEPS_POLICIES, steps_for, surprise
 from neuralfeels_sem.perception.camera_segmentation import SegmentationConfig
 from neuralfeels_sem.perception.tactile_depth import TactileDepth, TactileDepthConfig
-from neuralfeels_sem.mapping.press_fusion import PressFusion
 from neuralfeels_sem.perception.touch import TouchLabel
 from neuralfeels_sem.utils.frozen import frozen_parameters
 
