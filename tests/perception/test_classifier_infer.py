@@ -156,6 +156,7 @@ def test_imprint_cut_off_by_the_sensor_edge_gets_no_label(checkpoint: Path) -> N
     )
     assert edge.contact and edge.probs is not None
     assert edge.low_confidence and edge.label == NO_LABEL and not edge.usable
+    assert edge.at_edge and not centre.at_edge  # press fusion tells the two abstentions apart
     assert centre.usable
     off = MaterialClassifier(CLASSES, max_edge_share=1.0, **kwargs)
     assert off.classify([reading("index", strip, bg)])[0].usable
