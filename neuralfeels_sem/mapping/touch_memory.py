@@ -257,6 +257,27 @@ class TouchBuffer:
         used, _ = self._used_flat(labels, self._touch_of_point(labels.device))
         return list(torch.split(used, [len(lab) for lab in self._labels]))
 
+    def unconfirmed_readings(self, radius: float) -> torch.Tensor:
+        """(K, 3) centroids of readings the vote leaves out that no reading of another
+        press lies within `radius` of: a lone reading a second press would confirm or
+        refute (a small part read once looks like this, and so does a misreading)."""
+        if not self._item_touch or self.vote is None or not self.vote.active:
+            return torch.zeros(0, 3, device=self.device)
+        item_touch = torch.tensor(self._item_touch, device=self.device)
+        dropped = self._items_dropped(
+            item_touch, torch.tensor(self._item_label, device=self.device)
+        )
+        labelled, touch = torch.unique(item_touch, return_inverse=True)
+        events = press_events(
+            [self._fingers[t] for t in labelled.tolist()],
+            self._press_frames(labelled.tolist()),
+            self.vote.press_gap,
+        ).to(self.device)[touch]
+        centroids = torch.stack(self._item_centroid).to(self.device)
+        near = torch.cdist(centroids[dropped], centroids) < radius
+        near &= events[dropped][:, None] != events[None, :]
+        return centroids[dropped][~near.any(1)]
+
     def outvoted(self) -> torch.Tensor:
         """(T,) bool: labelled touches the vote leaves out entirely (all False without one)."""
         if not self._labels:

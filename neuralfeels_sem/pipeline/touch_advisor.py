@@ -118,6 +118,7 @@ class TouchAdvisor:
         self.entropy = np.zeros(0)
         self.advice: TouchAdvice | None = None
         self.world_T_field = np.eye(4)  # the latest frame's object pose (the field's frame)
+        self.unconfirmed = np.zeros((0, 3))  # readings to confirm, field frame
         self.mapped = 0
 
     def on_frame(self, frame: Frame, labels: dict, world_T_object: np.ndarray, mapper) -> None:
@@ -136,15 +137,25 @@ class TouchAdvisor:
         # is the estimated one when the pose is tracked).
         truth = frame.gt_world_T_object
         sensor_T_field = np.eye(4) if truth is None else invert_pose(truth) @ self.world_T_field
+        self.unconfirmed = self._unconfirmed(mapper)
         self.advice = TouchAdvice(
             _apply(sensor_T_field, self.surface),
             self.entropy,
             _apply(sensor_T_field, np.array(self.touched).reshape(-1, 3)),
             self.config.score,
             frame.index,
+            _apply(sensor_T_field, self.unconfirmed),
         )
         if getattr(self.sensor, "accepts_advice", False):
             self.sensor.advise(frame.index, self.advice)
+
+    def _unconfirmed(self, mapper) -> np.ndarray:
+        """(K, 3) readings the vote left out that a press should confirm (field frame)."""
+        score = self.config.score
+        if score.confirm_weight <= 0:
+            return np.zeros((0, 3))
+        points = mapper.memory.touches.unconfirmed_readings(score.confirm_m)
+        return points.double().cpu().numpy()
 
     def _counts(self, label: TouchLabel) -> bool:
         """Whether this touch makes its place less novel (`novelty_from`)."""
@@ -166,6 +177,7 @@ class TouchAdvisor:
             np.array(self.touched).reshape(-1, 3),
             self.config.score,
             self.advice.frame_index,
+            self.unconfirmed,
         )
         points, scores = advice.suggestions(self.config.top_k)
         report = suggestions_report(advice, points, scores, self.world_T_field)
@@ -190,6 +202,7 @@ def suggestions_report(
         "after_frame": advice.frame_index,
         "frame": "object (the map's frame); world at the latest mapped pose",
         "touches_counted": len(advice.touched),
+        "unconfirmed_readings": len(advice.unconfirmed),
         "surface_samples": len(advice.surface),
         "suggestions": [
             {

@@ -3,14 +3,18 @@
 The map's advice (`TouchAdvice`, built after every mapped frame by the mapping session's
 touch advisor, pipeline/touch_advisor.py) scores object-frame points:
 
-  score(p) = (w_u * u(p) + w_n * novelty(p)) / (w_u + w_n)   in [0, 1]
+  score(p) = (w_u * u(p) + w_n * novelty(p) + w_c * confirm(p)) / (w_u + w_n + w_c)   in [0, 1]
 
   u(p):       normalised entropy of the material branch at the map's surface sample
               nearest p (fields/material_uncertainty.py); 1 where no sample lies within
               `unseen_m` (a part the map has not seen is as uncertain as can be);
   novelty(p): distance from p to the nearest labelled touch, over `novelty_m`, capped at 1
               (1 before any touch): an untrained branch is often confidently wrong, so
-              entropy alone would not send the fingers to parts never pressed.
+              entropy alone would not send the fingers to parts never pressed;
+  confirm(p): 1 within `confirm_m` of a reading the label vote left out that no other
+              press has touched near (TouchBuffer.unconfirmed_readings), else 0: a small
+              part read once is left out of the map until a second press backs it, and a
+              second press there settles it either way. Weight `confirm_weight` (0: off).
 
 `TouchPlanner` ranks the reachable touches the contact sampler screened (the postures
 whose gel meets the object at touch-down time, sim/contact_sampler.py) by that score; the
@@ -36,12 +40,17 @@ class TouchScoreConfig:
     novelty_weight: float = 1.0
     novelty_m: float = 0.03  # a point this far from every labelled touch is fully novel
     unseen_m: float = 0.01  # a point this far from the map's surface samples counts unknown
+    confirm_weight: float = 0.0  # 0: off
+    confirm_m: float = 0.01  # a point this close to an unconfirmed reading confirms it
 
     def __post_init__(self) -> None:
-        if self.uncertainty_weight < 0 or self.novelty_weight < 0:
+        if min(self.uncertainty_weight, self.novelty_weight, self.confirm_weight) < 0:
             raise ValueError(
-                "mapping.advisor.score: uncertainty_weight and novelty_weight must be >= 0"
+                "mapping.advisor.score: uncertainty_weight, novelty_weight and confirm_weight "
+                "must be >= 0"
             )
+        if self.confirm_m <= 0:
+            raise ValueError(f"mapping.advisor.score.confirm_m={self.confirm_m} must be > 0")
         if self.uncertainty_weight + self.novelty_weight <= 0:
             raise ValueError(
                 "mapping.advisor.score: set uncertainty_weight or novelty_weight above 0"
@@ -59,6 +68,7 @@ class TouchAdvice:
         touched: (T, 3) labelled touches so far, object frame.
         config: the score's weights.
         frame_index: the mapped frame this advice follows.
+        unconfirmed: (K, 3) readings left out by the vote, to be confirmed, object frame.
     """
 
     def __init__(
@@ -68,6 +78,7 @@ class TouchAdvice:
         touched: np.ndarray,
         config: TouchScoreConfig,
         frame_index: int,
+        unconfirmed: np.ndarray | None = None,
     ) -> None:
         surface = np.asarray(surface, np.float64).reshape(-1, 3)
         entropy = np.asarray(entropy, np.float64).reshape(-1)
@@ -78,6 +89,9 @@ class TouchAdvice:
         self.config, self.frame_index = config, int(frame_index)
         self._surface_tree = cKDTree(surface) if len(surface) else None
         self._touch_tree = cKDTree(self.touched) if len(self.touched) else None
+        self.unconfirmed = np.zeros((0, 3)) if unconfirmed is None else unconfirmed
+        self.unconfirmed = np.asarray(self.unconfirmed, np.float64).reshape(-1, 3)
+        self._confirm_tree = cKDTree(self.unconfirmed) if len(self.unconfirmed) else None
 
     def touch_distance(self, points: np.ndarray) -> np.ndarray:
         """(N,) metres from each point to the nearest labelled touch (inf before any)."""
@@ -94,12 +108,21 @@ class TouchAdvice:
         dist, nearest = self._surface_tree.query(points)
         return np.where(dist <= self.config.unseen_m, self.entropy[nearest], 1.0)
 
+    def confirms(self, points: np.ndarray) -> np.ndarray:
+        """(N,) 1.0 where a point lies within `confirm_m` of an unconfirmed reading, else 0."""
+        points = np.asarray(points, np.float64).reshape(-1, 3)
+        if self._confirm_tree is None:
+            return np.zeros(len(points))
+        return (self._confirm_tree.query(points)[0] <= self.config.confirm_m).astype(np.float64)
+
     def score(self, points: np.ndarray) -> np.ndarray:
         """(N,) touch scores in [0, 1] of object-frame points: higher = touch there first."""
         c = self.config
         novelty = np.minimum(self.touch_distance(points) / c.novelty_m, 1.0)
         total = c.uncertainty_weight * self.uncertainty(points) + c.novelty_weight * novelty
-        return total / (c.uncertainty_weight + c.novelty_weight)
+        if c.confirm_weight > 0:
+            total = total + c.confirm_weight * self.confirms(points)
+        return total / (c.uncertainty_weight + c.novelty_weight + c.confirm_weight)
 
     def suggestions(self, k: int) -> tuple[np.ndarray, np.ndarray]:
         """The k best surface samples, at least novelty_m / 2 apart: (k', 3) points, (k',) scores."""
