@@ -123,3 +123,21 @@ def test_a_geometry_only_touch_does_not_join_two_presses() -> None:
     touches.add(torch.full((4, 3), 0.002), AXIS, 2, 0.9, finger="index", frame_index=6)
     assert touches.outvoted().tolist() == [False, False, False]
     assert touches.num_outvoted == 0
+
+
+def test_a_lone_left_out_reading_awaits_a_second_press_until_one_comes_near() -> None:
+    touches = TouchBuffer(CPU, _vote(min_support=1))
+    touches.add(torch.zeros(4, 3), AXIS, 2, 0.9, finger="thumb", frame_index=0)  # fabric, once
+    far = torch.full((4, 3), 0.05)
+    touches.add(far, AXIS, 0, 0.9, finger="index", frame_index=0)
+    touches.add(far + 0.001, AXIS, 0, 0.9, finger="index", frame_index=9)
+    np.testing.assert_allclose(touches.unconfirmed_readings(0.01).numpy(), [[0.0, 0.0, 0.0]])
+    assert len(TouchBuffer(CPU).unconfirmed_readings(0.01)) == 0  # no vote, nothing left out
+    # A second press near it reads plastic: the fabric reading stays out, but is settled.
+    touches.add(torch.full((4, 3), 0.004), AXIS, 0, 0.9, finger="middle", frame_index=12)
+    assert touches.outvoted().tolist()[0] and len(touches.unconfirmed_readings(0.01)) == 0
+    # Or it reads fabric: the two back each other and nothing is left out.
+    agreed = TouchBuffer(CPU, _vote(min_support=1))
+    agreed.add(torch.zeros(4, 3), AXIS, 2, 0.9, finger="thumb", frame_index=0)
+    agreed.add(torch.full((4, 3), 0.004), AXIS, 2, 0.9, finger="middle", frame_index=12)
+    assert not any(agreed.outvoted().tolist()) and len(agreed.unconfirmed_readings(0.01)) == 0

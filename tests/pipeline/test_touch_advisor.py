@@ -136,3 +136,37 @@ def test_only_an_advised_or_unsimulated_sensor_gets_an_advisor(tmp_path) -> None
     assert touch_advisors(config, Scripted(), tmp_path) == []
     assert len(touch_advisors(config, Real(), tmp_path)) == 1
     assert len(touch_advisors(config, AdvisedSensor(), tmp_path)) == 1
+
+
+def test_a_reading_left_out_by_the_vote_draws_the_next_press_with_the_confirm_term(
+    tmp_path,
+) -> None:
+    from neuralfeels_sem.mapping.label_vote import LabelVote
+    from neuralfeels_sem.mapping.touch_memory import TouchBuffer
+    from neuralfeels_sem.sim.touch_planner import TouchScoreConfig
+
+    vote = LabelVote(radius=0.01, min_neighbours=3, min_agreement=0.25, min_support=1,
+                     press_gap=0, support_radius=0.04, steady_frames=0)  # fmt: skip
+    lone = torch.tensor([[0.0, RADIUS, 0.0]] * 4)  # fabric read once, on the sphere's side
+
+    class Memory:
+        touches = TouchBuffer(torch.device("cpu"), vote)
+
+    Memory.touches.add(lone, torch.tensor([0.0, 1.0, 0.0]), 2, 0.9, finger="ring")
+    mapper = Mapper()
+    mapper.memory = Memory()
+    score = TouchScoreConfig(confirm_weight=2.0)
+    advisor = TouchAdvisor(TouchAdvisorConfig(surface_points=256, score=score), None, tmp_path)
+    advisor.on_frame(_frame(0), {}, np.eye(4), mapper)
+    advice = advisor.advice
+    np.testing.assert_allclose(advice.unconfirmed, lone[:1].numpy(), atol=1e-7)
+    at_reading, beside = advice.score(np.array([[0.0, RADIUS, 0.0], [0.0, -RADIUS, 0.0]]))
+    assert at_reading > beside  # equally unknown and novel, but one confirms the reading
+    assert advice.confirms(np.array([[0.0, RADIUS, 0.011]]))[0] == 0.0  # past confirm_m
+    plain = TouchAdvisor(TouchAdvisorConfig(surface_points=256), None, tmp_path)
+    plain.on_frame(_frame(0), {}, np.eye(4), Mapper())  # off: the mapper's memory is not read
+    assert len(plain.advice.unconfirmed) == 0
+    advisor.write()
+    assert json.loads((tmp_path / SUGGESTIONS_FILE).read_text())["unconfirmed_readings"] == 1
+    with pytest.raises(ValueError, match="confirm_weight"):
+        TouchScoreConfig(confirm_weight=-1.0)
