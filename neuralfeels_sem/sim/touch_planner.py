@@ -3,7 +3,8 @@
 The map's advice (`TouchAdvice`, built after every mapped frame by the mapping session's
 touch advisor, pipeline/touch_advisor.py) scores object-frame points:
 
-  score(p) = (w_u * u(p) + w_n * novelty(p) + w_c * confirm(p)) / (w_u + w_n + w_c)   in [0, 1]
+  base(p)  = (w_u * u(p) + w_n * novelty(p)) / (w_u + w_n)
+  score(p) = base(p) + c * confirm(p) * (1 - base(p))   in [0, 1]
 
   u(p):       normalised entropy of the material branch at the map's surface sample
               nearest p (fields/material_uncertainty.py); 1 where no sample lies within
@@ -14,7 +15,9 @@ touch advisor, pipeline/touch_advisor.py) scores object-frame points:
   confirm(p): 1 within `confirm_m` of a reading the label vote left out that no other
               press has touched near (TouchBuffer.unconfirmed_readings), else 0: a small
               part read once is left out of the map until a second press backs it, and a
-              second press there settles it either way. Weight `confirm_weight` (0: off).
+              second press there settles it either way. c = `confirm_weight` in [0, 1]
+              (0: off) lifts such a point that share of the way to 1; every other point
+              keeps its score, so the regrasp threshold means what it did.
 
 `TouchPlanner` ranks the reachable touches the contact sampler screened (the postures
 whose gel meets the object at touch-down time, sim/contact_sampler.py) by that score; the
@@ -40,14 +43,17 @@ class TouchScoreConfig:
     novelty_weight: float = 1.0
     novelty_m: float = 0.03  # a point this far from every labelled touch is fully novel
     unseen_m: float = 0.01  # a point this far from the map's surface samples counts unknown
-    confirm_weight: float = 0.0  # 0: off
+    confirm_weight: float = 0.0  # in [0, 1]; 0: off
     confirm_m: float = 0.01  # a point this close to an unconfirmed reading confirms it
 
     def __post_init__(self) -> None:
-        if min(self.uncertainty_weight, self.novelty_weight, self.confirm_weight) < 0:
+        if self.uncertainty_weight < 0 or self.novelty_weight < 0:
             raise ValueError(
-                "mapping.advisor.score: uncertainty_weight, novelty_weight and confirm_weight "
-                "must be >= 0"
+                "mapping.advisor.score: uncertainty_weight and novelty_weight must be >= 0"
+            )
+        if not 0.0 <= self.confirm_weight <= 1.0:
+            raise ValueError(
+                f"mapping.advisor.score.confirm_weight={self.confirm_weight} must be in [0, 1]"
             )
         if self.confirm_m <= 0:
             raise ValueError(f"mapping.advisor.score.confirm_m={self.confirm_m} must be > 0")
@@ -120,9 +126,10 @@ class TouchAdvice:
         c = self.config
         novelty = np.minimum(self.touch_distance(points) / c.novelty_m, 1.0)
         total = c.uncertainty_weight * self.uncertainty(points) + c.novelty_weight * novelty
-        if c.confirm_weight > 0:
-            total = total + c.confirm_weight * self.confirms(points)
-        return total / (c.uncertainty_weight + c.novelty_weight + c.confirm_weight)
+        base = total / (c.uncertainty_weight + c.novelty_weight)
+        if c.confirm_weight == 0:
+            return base
+        return base + c.confirm_weight * self.confirms(points) * (1.0 - base)
 
     def suggestions(self, k: int) -> tuple[np.ndarray, np.ndarray]:
         """The k best surface samples, at least novelty_m / 2 apart: (k', 3) points, (k',) scores."""

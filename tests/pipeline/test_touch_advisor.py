@@ -147,7 +147,8 @@ def test_a_reading_left_out_by_the_vote_draws_the_next_press_with_the_confirm_te
 
     vote = LabelVote(radius=0.01, min_neighbours=3, min_agreement=0.25, min_support=1,
                      press_gap=0, support_radius=0.04, steady_frames=0)  # fmt: skip
-    lone = torch.tensor([[0.0, RADIUS, 0.0]] * 4)  # fabric read once, on the sphere's side
+    side = [0.0, (RADIUS**2 - 0.01**2) ** 0.5, 0.01]  # on the certain upper half
+    lone = torch.tensor([side] * 4, dtype=torch.float32)  # fabric read once there
 
     class Memory:
         touches = TouchBuffer(torch.device("cpu"), vote)
@@ -155,18 +156,19 @@ def test_a_reading_left_out_by_the_vote_draws_the_next_press_with_the_confirm_te
     Memory.touches.add(lone, torch.tensor([0.0, 1.0, 0.0]), 2, 0.9, finger="ring")
     mapper = Mapper()
     mapper.memory = Memory()
-    score = TouchScoreConfig(confirm_weight=2.0)
+    score = TouchScoreConfig(confirm_weight=0.5)
     advisor = TouchAdvisor(TouchAdvisorConfig(surface_points=256, score=score), None, tmp_path)
     advisor.on_frame(_frame(0), {}, np.eye(4), mapper)
     advice = advisor.advice
     np.testing.assert_allclose(advice.unconfirmed, lone[:1].numpy(), atol=1e-7)
-    at_reading, beside = advice.score(np.array([[0.0, RADIUS, 0.0], [0.0, -RADIUS, 0.0]]))
-    assert at_reading > beside  # equally unknown and novel, but one confirms the reading
-    assert advice.confirms(np.array([[0.0, RADIUS, 0.011]]))[0] == 0.0  # past confirm_m
+    at_reading, beside = advice.score(np.array([side, [0.0, -side[1], side[2]]]))
+    assert beside == pytest.approx(0.5)  # certain, but fully novel
+    assert at_reading == pytest.approx(0.75)  # lifted half the way to 1
+    assert advice.confirms(np.array([[0.0, side[1], 0.021]]))[0] == 0.0  # past confirm_m
     plain = TouchAdvisor(TouchAdvisorConfig(surface_points=256), None, tmp_path)
     plain.on_frame(_frame(0), {}, np.eye(4), Mapper())  # off: the mapper's memory is not read
     assert len(plain.advice.unconfirmed) == 0
     advisor.write()
     assert json.loads((tmp_path / SUGGESTIONS_FILE).read_text())["unconfirmed_readings"] == 1
     with pytest.raises(ValueError, match="confirm_weight"):
-        TouchScoreConfig(confirm_weight=-1.0)
+        TouchScoreConfig(confirm_weight=1.5)
