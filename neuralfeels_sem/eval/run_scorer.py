@@ -35,7 +35,7 @@ from neuralfeels_sem.eval.uncertainty import (
 from neuralfeels_sem.fields.semantic_field import evaluate_chunked
 from neuralfeels_sem.mapping.mesh import extract_mesh
 from neuralfeels_sem.objects.material_object import MaterialObject
-from neuralfeels_sem.perception.touch import TouchLabel
+from neuralfeels_sem.perception.touch import TouchLabel, abstention
 
 log = logging.getLogger(__name__)
 
@@ -111,7 +111,8 @@ class RunScorer:
         self.curve: list[list[float]] = []  # [frame_index, time_s, matching_pct]
         self.mean_class_curve: list[list[float]] = []  # [frame_index, time_s, mean-class %]
         self._majority: dict | None = None  # majority_baseline(), once computed
-        self.touch_log: list[list] = []  # [frame_index, finger, predicted, gt or -1, confidence]
+        # [frame_index, finger, predicted, gt or -1, confidence, top class or -1, abstained]
+        self.touch_log: list[list] = []
 
     # ---------------------------------------------------------------- during the run
     def log_touches(self, frame: Frame, labels: dict[str, TouchLabel]) -> None:
@@ -126,6 +127,8 @@ class RunScorer:
                     int(label.label),
                     -1 if gt is None else gt,
                     float(label.confidence),
+                    -1 if label.probs is None else int(np.argmax(label.probs)),
+                    abstention(label),
                 ]
             )
 
@@ -168,7 +171,7 @@ class RunScorer:
     # ---------------------------------------------------------------- summaries
     def classifier_accuracy(self) -> dict:
         acc = ClassifierAccuracy()
-        for _, finger, predicted, gt, _ in self.touch_log:
+        for _, finger, predicted, gt, *_ in self.touch_log:
             acc.update(finger, int(predicted), None if gt < 0 else int(gt))
         return acc.summary(self.class_names)
 
@@ -290,4 +293,7 @@ class RunScorer:
     def load_state(self, state: dict) -> None:
         self.curve = [list(row) for row in state.get("curve", [])]
         self.mean_class_curve = [list(row) for row in state.get("mean_class_curve", [])]
-        self.touch_log = [list(row) for row in state.get("touch_log", [])]
+        # Logs from before the top class and abstention were kept: neither known.
+        self.touch_log = [
+            list(row) + [-1, ""][len(row) - 5 :] for row in state.get("touch_log", [])
+        ]

@@ -49,3 +49,11 @@ class TouchLabel:
             and self.pixel_labels is not None
             and bool((self.pixel_labels != NO_LABEL).any())
         )
+
+
+def abstention(label: TouchLabel) -> str:
+    """Why a touch in contact got no label: `edge` (the imprint lies along the sensor's
+    border), `low_confidence` (below classifier.min_confidence), or "" when it has one."""
+    if not label.contact or label.usable:
+        return ""
+    return "edge" if label.at_edge else "low_confidence"

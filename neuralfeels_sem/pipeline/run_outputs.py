@@ -44,8 +44,10 @@ def write_touches(
         if partial:
             f.write("# partial: the run was interrupted; resume it to complete this log\n")
         writer = csv.writer(f)
-        writer.writerow(["frame", "finger", "predicted", "ground_truth", "confidence"])
-        for frame, finger, predicted, gt, confidence in touch_log:
+        writer.writerow(
+            ["frame", "finger", "predicted", "ground_truth", "confidence", "top_class", "abstained"]
+        )
+        for frame, finger, predicted, gt, confidence, top, abstained in touch_log:
             writer.writerow(
                 [
                     frame,
@@ -53,6 +55,8 @@ def write_touches(
                     class_names[predicted] if predicted >= 0 else "none",
                     class_names[gt] if gt >= 0 else "unknown",
                     f"{confidence:.3f}",
+                    class_names[top] if top >= 0 else "none",
+                    abstained,
                 ]
             )
 

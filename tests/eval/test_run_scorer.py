@@ -140,3 +140,31 @@ def test_snapshots_carry_the_uncertainty_of_every_object_pixel(scorer: RunScorer
     on_object = maps["gt"] != -2
     assert np.isfinite(entropy[on_object]).all() and np.isnan(entropy[~on_object]).all()
     assert entropy[maps["diff"]].mean() > entropy[on_object & ~maps["diff"]].mean()
+
+
+def test_touches_csv_says_what_an_abstained_touch_read_and_why(scorer, tmp_path) -> None:
+    import csv
+
+    from neuralfeels_sem.perception.touch import TouchLabel, abstention
+    from neuralfeels_sem.pipeline.run_outputs import write_touches
+
+    probs = np.array([0.1, 0.2, 0.7, 0.0])
+    edge = TouchLabel("ring", True, probs=probs, confidence=0.7, low_confidence=True, at_edge=True)
+    unsure = TouchLabel("index", True, probs=probs, confidence=0.7, low_confidence=True)
+    read = TouchLabel("thumb", True, label=2, probs=probs, confidence=0.7)
+    assert [abstention(t) for t in (edge, unsure, read)] == ["edge", "low_confidence", ""]
+    assert abstention(TouchLabel("middle", False)) == ""
+    saved = scorer.touch_log
+    try:
+        # A checkpoint from before the two columns: neither is known.
+        scorer.load_state({"touch_log": [[3, "index", 2, 2, 0.9]]})
+        assert scorer.touch_log == [[3, "index", 2, 2, 0.9, -1, ""]]
+        scorer.touch_log.append([4, "ring", -1, 0, 0.7, 2, abstention(edge)])
+        write_touches(scorer.touch_log, list(scorer.class_names), tmp_path / "touches.csv")
+        rows = list(csv.DictReader((tmp_path / "touches.csv").open()))
+        assert [(r["predicted"], r["top_class"], r["abstained"]) for r in rows] == [
+            ("fabric", "none", ""),
+            ("none", "fabric", "edge"),
+        ]
+    finally:
+        scorer.touch_log = saved
