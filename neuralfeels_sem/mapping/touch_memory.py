@@ -129,21 +129,28 @@ class TouchBuffer:
             self._fuse()
 
     def _fuse(self) -> None:
-        """Label the abstained touches that the presses around them now read surely enough."""
+        """Label the abstained touches that the presses around them now read surely enough.
+
+        Only those within the fusion radius of the newest touch: nobody else's evidence
+        changed."""
         fusion = self.fusion
         pooled = [
             t
             for t, p in enumerate(self._probs)
             if len(p) and (fusion.include_edge or not self._at_edge[t])
         ]
-        open_ = [i for i, t in enumerate(pooled) if self._touch_labels[t] < 0]
+        if not pooled or pooled[-1] != len(self._probs) - 1:
+            return  # the newest touch is not pooled
+        centroids = torch.stack([self._points[t].mean(0) for t in pooled])
+        near_new = (centroids - centroids[-1]).norm(dim=1) < fusion.radius
+        open_ = [i for i, t in enumerate(pooled) if self._touch_labels[t] < 0 and near_new[i]]
         if not open_:
             return
         events = press_events(
             [self._fingers[t] for t in pooled], self._press_frames(pooled), fusion.press_gap
         )
         labels, probability = fusion.fuse(
-            torch.stack([self._points[t].mean(0) for t in pooled]),
+            centroids,
             torch.stack([self._probs[t] for t in pooled]),
             events.to(self.device),
             torch.tensor(open_, device=self.device),
