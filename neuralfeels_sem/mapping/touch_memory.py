@@ -146,13 +146,10 @@ class TouchBuffer:
         open_ = [i for i, t in enumerate(pooled) if self._touch_labels[t] < 0 and near_new[i]]
         if not open_:
             return
-        events = press_events(
-            [self._fingers[t] for t in pooled], self._press_frames(pooled), fusion.press_gap
-        )
         labels, probability = fusion.fuse(
             centroids,
             torch.stack([self._probs[t] for t in pooled]),
-            events.to(self.device),
+            self._press_ids(pooled, fusion.press_gap),
             torch.tensor(open_, device=self.device),
         )
         for i, label, p in zip(open_, labels.tolist(), probability.tolist()):
@@ -235,6 +232,12 @@ class TouchBuffer:
         ok = keep[touch_of_point * classes + labels.clamp_min(0)] & (labels >= 0)
         return torch.where(ok, labels, -1), int(dropped.sum())
 
+    def _press_ids(self, touches: list[int], gap: int) -> torch.Tensor:
+        """(len(touches),) press ids of these touches (in frame order), presses chained
+        over them alone (label_vote.press_events)."""
+        fingers = [self._fingers[t] for t in touches]
+        return press_events(fingers, self._press_frames(touches), gap).to(self.device)
+
     def _touch_of_point(self, device: torch.device) -> torch.Tensor:
         """The touch index of every stored point, in storage order."""
         sizes = torch.tensor([len(lab) for lab in self._labels], device=device)
@@ -275,11 +278,7 @@ class TouchBuffer:
             item_touch, torch.tensor(self._item_label, device=self.device)
         )
         labelled, touch = torch.unique(item_touch, return_inverse=True)
-        events = press_events(
-            [self._fingers[t] for t in labelled.tolist()],
-            self._press_frames(labelled.tolist()),
-            self.vote.press_gap,
-        ).to(self.device)[touch]
+        events = self._press_ids(labelled.tolist(), self.vote.press_gap)[touch]
         centroids = torch.stack(self._item_centroid).to(self.device)
         near = torch.cdist(centroids[dropped], centroids) < radius
         near &= events[dropped][:, None] != events[None, :]

@@ -8,9 +8,10 @@ own one frame ahead of classification and perception, so the three stages (acqui
 perceive, map) work on three frames side by side where there are cores for them. Frames
 reach the mapper through a FrameQueue (pace.py): at sensor.pace=offline every frame, in
 order, the producer waiting for room; at realtime at the sensor's clock, the newest frame
-replacing an older one the mapper did not take yet. Nothing here reads the field, so the mapped frames and their
-labels are those of a sequential loop. An exception in the producer ends the stream with a
-StreamEnd carrying it; the mapper's side ends the run with it.
+replacing an older one the mapper did not take yet. Nothing here reads the field, so the
+mapped frames and their labels are those of a sequential loop. An exception in the
+producer ends the stream with a StreamEnd carrying it; the mapper's side ends the run
+with it.
 """
 
 from __future__ import annotations

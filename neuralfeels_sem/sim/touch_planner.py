@@ -95,8 +95,9 @@ class TouchAdvice:
         self.config, self.frame_index = config, int(frame_index)
         self._surface_tree = cKDTree(surface) if len(surface) else None
         self._touch_tree = cKDTree(self.touched) if len(self.touched) else None
-        self.unconfirmed = np.zeros((0, 3)) if unconfirmed is None else unconfirmed
-        self.unconfirmed = np.asarray(self.unconfirmed, np.float64).reshape(-1, 3)
+        self.unconfirmed = np.asarray(
+            np.zeros((0, 3)) if unconfirmed is None else unconfirmed, np.float64
+        ).reshape(-1, 3)
         self._confirm_tree = cKDTree(self.unconfirmed) if len(self.unconfirmed) else None
 
     def touch_distance(self, points: np.ndarray) -> np.ndarray:
