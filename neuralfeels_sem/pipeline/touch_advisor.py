@@ -150,9 +150,10 @@ class TouchAdvisor:
             self.sensor.advise(frame.index, self.advice)
 
     def _unconfirmed(self, mapper) -> np.ndarray:
-        """(K, 3) readings the vote left out that a press should confirm (field frame)."""
+        """(K, 3) readings the vote left out that a press should confirm (field frame):
+        for the confirm term, and for a sensor that plans touches (its confirm regrasps)."""
         score = self.config.score
-        if score.confirm_weight <= 0:
+        if score.confirm_weight <= 0 and not getattr(self.sensor, "accepts_advice", False):
             return np.zeros((0, 3))
         points = mapper.memory.touches.unconfirmed_readings(score.confirm_m)
         return points.double().cpu().numpy()

@@ -106,9 +106,11 @@ class ContactSampler:
     def _by_score(self, planner, touches: list[Touch], touchdown_s: float) -> list[Touch]:
         """Screened touches best score first (sensor.policy=active); may start a regrasp."""
         contact = np.array([-c[0] / GOOD_CONTACT_RAYS for c in touches])  # full: 1
-        order, scores = planner.rank(np.array([c[4] for c in touches]), contact)
+        points = np.array([c[4] for c in touches])
+        order, scores = planner.rank(points, contact)
         height = self._hotspot_height(planner, touchdown_s)
-        if planner.note_choice(touchdown_s, float(scores.max()), height):
+        reachable = planner.confirm_reachable(points)
+        if planner.note_choice(touchdown_s, float(scores.max()), height, reachable):
             self._regrasp(touchdown_s)
         return [touches[i] for i in order]
 

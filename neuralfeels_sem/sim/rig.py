@@ -146,6 +146,7 @@ class SimRig(ContactSampler, FingerControl, RigProbes):
             alternate_axis=self.alternate_axis,
             alternate_every_s=self.alternate_every_s,
         )
+        self.regrasp_reasons: list[str] = []  # beside trajectory.regrasps: why each was due
         self.policy = GaitingPolicy(
             self.trajectory,
             self._sample_contact,
@@ -207,6 +208,7 @@ class SimRig(ContactSampler, FingerControl, RigProbes):
         if move is None:
             return
         k, _ = self.trajectory.regrasp(start, *move)
+        self.regrasp_reasons.append(self.planner.due_reason)
         self._libraries = {key: v for key, v in self._libraries.items() if key[1] < k}
         self._profiles = {s: v for s, v in self._profiles.items() if s < k}
 

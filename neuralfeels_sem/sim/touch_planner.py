@@ -24,7 +24,11 @@ whose gel meets the object at touch-down time, sim/contact_sampler.py) by that s
 sampler presses the best that its IK confirms. When the best reachable score stays below
 `regrasp_below` for `regrasp_after` new contacts in a row, the planner turns and shifts
 the object in the grasp (`regrasp_move`): the most uncertain, least touched part of the
-map is brought to the fingers.
+map is brought to the fingers. With `confirm_regrasp_after`, a regrasp is also due when the
+advice holds unconfirmed readings and no screened touch has come within `confirm_m` of one
+for that many new contacts in a row: that regrasp brings the most uncertain of them to the
+fingers instead (a part read once is left out of the map until a second press backs it,
+and the turn the object is in may never bring it back).
 """
 
 from __future__ import annotations
@@ -175,6 +179,9 @@ class TouchPlannerConfig:
     # (default): off; at 0.03 it regrasped 2-7 times a run and mapped worse
     # (docs/simulation.md).
     out_of_reach_m: float | None = None
+    # Regrasp for an unconfirmed reading no screened touch could reach this many new
+    # contacts in a row (see the module docstring). null (default): off.
+    confirm_regrasp_after: int | None = None
     max_offset_m: float = 0.05  # the object's centre stays this close to the grasp centre
     keep_m: float = 0.02  # a regrasp brings the hotspot this close to the fingers' height
     axes: list[list[float]] = field(
@@ -192,6 +199,11 @@ class TouchPlannerConfig:
             raise ValueError(
                 f"sensor.planner.out_of_reach_m={self.out_of_reach_m} must be > 0 or null"
             )
+        if self.confirm_regrasp_after is not None and self.confirm_regrasp_after < 1:
+            raise ValueError(
+                f"sensor.planner.confirm_regrasp_after={self.confirm_regrasp_after} "
+                "must be >= 1 or null"
+            )
         if self.regrasp_gap_s < 0 or self.max_offset_m < 0 or self.keep_m < 0:
             raise ValueError("sensor.planner: regrasp_gap_s, max_offset_m and keep_m must be >= 0")
         if not self.axes or any(len(a) != 3 or np.linalg.norm(a) < 1e-9 for a in self.axes):
@@ -208,6 +220,9 @@ class TouchPlanner:
         self.advice: TouchAdvice | None = None
         self.starved = 0  # new contacts in a row whose best reachable score was low
         self.last_regrasp_s = -np.inf
+        self.unreached = 0  # new contacts in a row that could confirm no unconfirmed reading
+        self.aim: np.ndarray | None = None  # the point the next regrasp brings to the fingers
+        self.due_reason = ""  # why the latest regrasp was due: starved, away or confirm
         self.choices: list[tuple[float, int, float]] = []  # (touch-down s, advice frame, score)
 
     def rank(
@@ -232,33 +247,60 @@ class TouchPlanner:
             key = scores * contact
         return np.lexsort((np.arange(len(points)), -key)), scores
 
+    def confirm_reachable(self, points: np.ndarray) -> bool | None:
+        """Whether a screened touch would confirm an unconfirmed reading (None: none to confirm)."""
+        if self.advice is None or not len(self.advice.unconfirmed):
+            return None
+        return bool(self.advice.confirms(points).any())
+
     def note_choice(
-        self, touchdown_s: float, best_score: float, hotspot_height_m: float | None = None
+        self,
+        touchdown_s: float,
+        best_score: float,
+        hotspot_height_m: float | None = None,
+        confirm_reachable: bool | None = None,
     ) -> bool:
         """Record a new contact's best reachable score; True when a regrasp is due.
 
         hotspot_height_m: the hotspot's distance from the fingers' height along the axis
         the object turns about now (None: unknown); beyond `out_of_reach_m` a regrasp is
-        due as when starved.
+        due as when starved. confirm_reachable: `confirm_reachable` of the screened
+        touches; False for `confirm_regrasp_after` contacts in a row makes a regrasp due
+        that aims at an unconfirmed reading.
         """
         frame = -1 if self.advice is None else self.advice.frame_index
         self.choices.append((float(touchdown_s), frame, float(best_score)))
         if self.advice is None:
             return False
         self.starved = self.starved + 1 if best_score < self.config.regrasp_below else 0
+        self.unreached = self.unreached + 1 if confirm_reachable is False else 0
         reach = self.config.out_of_reach_m
-        away = reach is not None and hotspot_height_m is not None and hotspot_height_m > reach
-        due = (
-            self.starved >= self.config.regrasp_after or away
-        ) and touchdown_s - self.last_regrasp_s >= self.config.regrasp_gap_s
+        after = self.config.confirm_regrasp_after
+        reasons = {
+            "starved": self.starved >= self.config.regrasp_after,
+            "away": reach is not None and hotspot_height_m is not None and hotspot_height_m > reach,
+            "confirm": after is not None and self.unreached >= after,
+        }
+        due = any(reasons.values()) and (
+            touchdown_s - self.last_regrasp_s >= self.config.regrasp_gap_s
+        )
         if due:
-            self.starved, self.last_regrasp_s = 0, float(touchdown_s)
+            self.aim = self._confirm_aim() if reasons["confirm"] else None
+            self.due_reason = next(k for k, v in reasons.items() if v)
+            self.starved, self.unreached = 0, 0
+            self.last_regrasp_s = float(touchdown_s)
         return due
+
+    def _confirm_aim(self) -> np.ndarray:
+        """The unconfirmed reading where the map is least sure (ties: the first)."""
+        points = self.advice.unconfirmed
+        return points[int(np.argmax(self.advice.uncertainty(points)))]
 
     def regrasp_move(
         self, world_T_object: np.ndarray, palm_up: np.ndarray
     ) -> tuple[np.ndarray, np.ndarray] | None:
-        """New rotation axis and grasp offset (world, from the grasp centre) for the hotspot.
+        """New rotation axis and grasp offset (world, from the grasp centre) for the hotspot
+        (or the unconfirmed reading a confirm regrasp aims at).
 
         The axis most aligned with the hotspot's direction from the object's centre (so that
         turning about it sweeps the hotspot's band past the fingers), the object slid along
@@ -266,7 +308,10 @@ class TouchPlanner:
         from the grasp centre). The slide keeps to the palm's plane and axes along the palm
         normal are skipped: the object never moves into the palm. None without advice.
         """
-        if self.advice is None or (spot := self.advice.hotspot()) is None:
+        if self.advice is None:
+            return None
+        spot, self.aim = (self.advice.hotspot() if self.aim is None else self.aim), None
+        if spot is None:
             return None
         rel = world_T_object[:3, :3] @ spot  # hotspot from the object's centre, world
         axes = [np.asarray(a, float) / np.linalg.norm(a) for a in self.config.axes]

@@ -45,6 +45,18 @@ class SphereField(torch.nn.Module):
 class Mapper:
     field = SphereField()
 
+    def __init__(self) -> None:
+        self.memory = EmptyMemory()
+
+
+class EmptyMemory:
+    """A mapper memory with no touches (so no readings to confirm)."""
+
+    def __init__(self) -> None:
+        from neuralfeels_sem.mapping.touch_memory import TouchBuffer
+
+        self.touches = TouchBuffer(torch.device("cpu"), None)
+
 
 class AdvisedSensor:
     accepts_advice = True
@@ -168,6 +180,10 @@ def test_a_reading_left_out_by_the_vote_draws_the_next_press_with_the_confirm_te
     plain = TouchAdvisor(TouchAdvisorConfig(surface_points=256), None, tmp_path)
     plain.on_frame(_frame(0), {}, np.eye(4), Mapper())  # off: the mapper's memory is not read
     assert len(plain.advice.unconfirmed) == 0
+    # a sensor that plans touches gets the readings to confirm even with the term off
+    planned = TouchAdvisor(TouchAdvisorConfig(surface_points=256), AdvisedSensor(), tmp_path)
+    planned.on_frame(_frame(0), {}, np.eye(4), mapper)
+    np.testing.assert_allclose(planned.advice.unconfirmed, lone[:1].numpy(), atol=1e-7)
     advisor.write()
     assert json.loads((tmp_path / SUGGESTIONS_FILE).read_text())["unconfirmed_readings"] == 1
     with pytest.raises(ValueError, match="confirm_weight"):

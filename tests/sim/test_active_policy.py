@@ -136,3 +136,32 @@ def test_a_hotspot_beyond_the_turns_reach_starts_a_regrasp_soon() -> None:
     for i in range(10):
         starved_only.state_at(i / 10)
     assert not starved_only.trajectory.regrasps
+
+
+def _closest_touch_s(rig: SimRig, point: np.ndarray, seconds: float, within_m: float):
+    """The first time a finger touches within `within_m` of an object-frame point (or None)."""
+    for i in range(int(seconds * 10)):
+        state = rig.state_at(i / 10)
+        for f, p in state.contact_point.items():
+            if state.touching[f] and p is not None and np.linalg.norm(p - point) < within_m:
+                return i / 10
+    return None
+
+
+def test_a_confirm_regrasp_brings_an_unconfirmed_reading_under_a_finger() -> None:
+    # One reading to confirm, at the pole that faces the palm's normal at the start: the
+    # first turn does not bring it to a finger within 6 s; a confirm regrasp does.
+    sphere = two_material_sphere()
+    surface = np.asarray(sphere.mesh.vertices)
+    probe = SimRig(sphere, seed=0, **MOTION)
+    probe.open()
+    up = probe.trajectory.pose(0.0)[:3, :3].T @ probe.scene.world_T_palm[:3, 0]
+    pole = surface[int(np.argmax(surface @ up))]
+    score = TouchScoreConfig(confirm_weight=1.0)
+    advice = TouchAdvice(surface, np.zeros(len(surface)), surface, score, 0, pole[None])
+    aimed = _active_rig(advice, confirm_regrasp_after=2, regrasp_after=100)
+    assert _closest_touch_s(aimed, pole, 6.0, 0.01) is not None
+    assert aimed.regrasp_reasons and set(aimed.regrasp_reasons) == {"confirm"}
+    plain = _active_rig(advice, regrasp_after=100)
+    assert _closest_touch_s(plain, pole, 6.0, 0.01) is None
+    assert not plain.trajectory.regrasps

@@ -110,9 +110,52 @@ def test_regrasp_move_slides_the_hotspot_to_the_fingers_along_the_palm() -> None
     assert TouchPlanner().regrasp_move(np.eye(4), up) is None  # no advice, no move
 
 
+def _unconfirmed_advice() -> TouchAdvice:
+    """Two readings to confirm: one where the map is sure (entropy 0), one where it is not."""
+    surface = np.array([[0.0, 0.0, 0.04], [0.04, 0.0, 0.0], [0.0, 0.04, 0.0]])
+    unconfirmed = np.array([[0.0, 0.0, 0.041], [0.0, 0.041, 0.0]])
+    return TouchAdvice(surface, np.array([0.0, 0.5, 1.0]), surface[:1], SCORE, 7, unconfirmed)
+
+
+def test_a_confirm_regrasp_is_due_when_no_touch_could_reach_an_unconfirmed_reading() -> None:
+    planner = TouchPlanner(TouchPlannerConfig(confirm_regrasp_after=2, regrasp_gap_s=1.0))
+    planner.advice = _unconfirmed_advice()
+    near, far = np.array([[0.0, 0.04, 0.0]]), np.array([[0.04, 0.0, 0.0]])
+    assert planner.confirm_reachable(near) is True and planner.confirm_reachable(far) is False
+    hits = [planner.note_choice(t, 0.9, None, r) for t, r in ((1, False), (2, True), (3, False))]
+    assert hits == [False, False, False]  # a reachable one resets the count
+    assert planner.note_choice(4.0, 0.9, None, False) and planner.due_reason == "confirm"
+    np.testing.assert_allclose(planner.aim, [0.0, 0.041, 0.0])  # the less certain of the two
+    axis, offset = planner.regrasp_move(np.eye(4), np.array([0.0, 0.0, 1.0]))
+    np.testing.assert_allclose(axis, [0.0, 1.0, 0.0])  # turns about the aim's direction
+    np.testing.assert_allclose(offset, [0.0, -0.021, 0.0])  # to within keep_m (2 cm)
+    assert planner.aim is None  # the next regrasp goes back to the hotspot
+    # nothing to confirm (None) never counts; off by default
+    assert not any(planner.note_choice(t, 0.9, None, None) for t in (10.0, 11.0, 12.0))
+    off = TouchPlanner()
+    off.advice = _unconfirmed_advice()
+    assert not any(off.note_choice(t, 0.9, None, False) for t in range(1, 20))
+    empty = TouchPlanner()
+    empty.advice = _advice()
+    assert empty.confirm_reachable(near) is None
+
+
+def test_a_starved_regrasp_keeps_aiming_at_the_hotspot() -> None:
+    planner = TouchPlanner(TouchPlannerConfig(regrasp_after=1, confirm_regrasp_after=5))
+    planner.advice = _unconfirmed_advice()
+    assert planner.note_choice(1.0, 0.1, None, False) and planner.due_reason == "starved"
+    assert planner.aim is None
+
+
 @pytest.mark.parametrize(
     "key, value",
-    [("candidates", 0), ("regrasp_below", 1.5), ("regrasp_after", 0), ("axes", [[0, 0, 0]])],
+    [
+        ("candidates", 0),
+        ("regrasp_below", 1.5),
+        ("regrasp_after", 0),
+        ("confirm_regrasp_after", 0),
+        ("axes", [[0, 0, 0]]),
+    ],
 )
 def test_bad_planner_settings_are_value_errors_naming_the_key(key, value) -> None:
     with pytest.raises(ValueError, match=f"sensor.planner.{key}"):

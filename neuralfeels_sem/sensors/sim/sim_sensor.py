@@ -228,8 +228,8 @@ class SimSensor(Sensor):
             "choices": len(scores),
             "mean_best_score": float(np.mean(scores)) if scores else None,
             "regrasps": [
-                {"time_s": t, "axis": axis.tolist(), "offset_m": offset.tolist()}
-                for t, axis, offset in trajectory.regrasps
+                {"time_s": t, "axis": axis.tolist(), "offset_m": offset.tolist(), "why": why}
+                for (t, axis, offset), why in zip(trajectory.regrasps, self.rig.regrasp_reasons)
             ],
         }
 
