@@ -3,8 +3,11 @@
 Reads each run directory's config and final checkpoint (nothing is re-run), queries the
 field at the run's matching samples and charges every wrong sample to its ground-truth
 region's case: never pressed, pressed without a label, labelled only wrongly, or labelled
-rightly (border and extrapolation errors). Prints one line per run and the totals, and
-writes the full records as JSON.
+rightly (border and extrapolation errors). Also audits the readings
+(eval/reading_audit.py): per material the frames that read it rightly, how right the
+readings the label vote left out were, and how right the presses the classifier abstained
+on would have been. Prints one line per run and the totals, and writes the full records
+as JSON.
 
     python -m neuralfeels_sem.bench.map_errors /work/runs/sweep/* --out errors.json
 """
@@ -24,6 +27,7 @@ from scipy.spatial import cKDTree
 from neuralfeels_sem.configs import register_configs
 from neuralfeels_sem.eval.error_sources import CASES, TouchSet, error_sources
 from neuralfeels_sem.eval.matching import MatchingEvaluator
+from neuralfeels_sem.eval.reading_audit import Abstentions, pool_audits, reading_audit
 from neuralfeels_sem.eval.uncertainty import probability_predictor
 from neuralfeels_sem.mapping.checkpoint import load_checkpoint
 from neuralfeels_sem.tasks.build import BOUND_MARGIN, build_mapper, model_config
@@ -43,6 +47,22 @@ def touch_set(mapper) -> TouchSet:
     return TouchSet(points, labels, used, point_labels, used_labels)
 
 
+def abstentions(mapper) -> Abstentions:
+    """The presses the classifier abstained on (no label, its probabilities kept)."""
+    state = mapper.memory.touches.state_dict()
+    chosen = [
+        t
+        for t, (labels, probs) in enumerate(zip(state["labels"], state["probs"]))
+        if len(probs) and not bool((labels >= 0).any())
+    ]
+    classes = len(state["probs"][chosen[0]]) if chosen else 0
+    return Abstentions(
+        [state["points"][t].cpu().numpy().astype(np.float64) for t in chosen],
+        np.array([state["probs"][t].cpu().numpy() for t in chosen]).reshape(len(chosen), classes),
+        np.array([state["at_edge"][t] for t in chosen], dtype=bool),
+    )
+
+
 def run_errors(run_dir: Path) -> dict:
     """The error sources of one finished mapping run (object pose: the run's ground truth)."""
     cfg = load_run_config(run_dir)
@@ -56,6 +76,9 @@ def run_errors(run_dir: Path) -> dict:
     report = error_sources(obj, matching.points, matching.faces, probs.argmax(axis=1), touches)
     metrics_file = run_dir / "metrics.json"
     metrics = json.loads(metrics_file.read_text()) if metrics_file.is_file() else {}
+    audit = reading_audit(
+        obj, touches, abstentions(mapper), list(obj.class_names), metrics.get("matching_per_class")
+    )
     return {
         "run": str(run_dir),
         "object": obj.name,
@@ -70,6 +93,7 @@ def run_errors(run_dir: Path) -> dict:
         # give read perfectly (the gap to the ceiling above: presses left unread).
         **used_point_truth(obj, matching, touches),
         **report,
+        "readings": audit,
     }
 
 
@@ -175,8 +199,35 @@ def main(argv: list[str] | None = None) -> None:
         "mean points of mean-class matching lost per run:",
         {c: round(v, 1) for c, v in totals.items()},
     )
+    pooled = pool_audits([r["readings"] for r in rows])
+    print(pooled_lines(pooled))
     if args.out is not None:
-        args.out.write_text(json.dumps({"mean_points_lost": totals, "runs": rows}, indent=1))
+        record = {"mean_points_lost": totals, "readings": pooled, "runs": rows}
+        args.out.write_text(json.dumps(record, indent=1))
+
+
+def pooled_lines(pooled: dict) -> str:
+    """The pooled reading audit as a few lines of text."""
+
+    def pct(value: float | None) -> str:
+        return "  -" if value is None else f"{value:3.0f}"
+
+    lines = ["materials by frames read rightly: " + ", ".join(
+        f"{b['from']}{'+' if b['to'] is None else '-' + str(b['to'])}: {b['materials']}"
+        f" (recall {pct(b['mean_recall_pct'])} %)" for b in pooled["materials_by_frames_right"]
+    )]  # fmt: skip
+    out = pooled["outvoted"]
+    lines.append(f"readings the vote left out: {out['readings']}, right {pct(out['right_pct'])} %")
+    for reason, rows in pooled["abstained_by_confidence"].items():
+        lines.append(f"abstained ({reason}), top class right by confidence: " + ", ".join(
+            f">={r['from']}: {pct(r['right_pct'])} % of {r['frames']}" for r in rows
+        ))  # fmt: skip
+    rare = pooled["abstained_rare_material"]
+    lines.append(
+        f"abstained readings naming a material the map nearly lacks: {rare['frames']},"
+        f" right {pct(rare['right_pct'])} %"
+    )
+    return "\n".join(lines)
 
 
 if __name__ == "__main__":

@@ -43,3 +43,28 @@ def test_without_trained_points_the_figures_are_none(sphere) -> None:
     assert used_point_truth(obj, matching, TouchSet([], [], [])) == empty
     unused = TouchSet([_press(1.0)], [PLASTIC], [False])
     assert used_point_truth(obj, matching, unused) == empty
+
+
+def test_abstentions_are_the_unlabelled_touches_with_a_reading() -> None:
+    import torch
+
+    from neuralfeels_sem.bench.map_errors import abstentions
+    from neuralfeels_sem.mapping.touch_memory import TouchBuffer
+
+    buffer = TouchBuffer(torch.device("cpu"), None)
+    points = torch.tensor(_press(1.0), dtype=torch.float32)
+    axis = torch.tensor([0.0, 1.0, 0.0])
+    edge_reading = torch.tensor([0.97, 0.01, 0.01, 0.01])
+    buffer.add(points, axis, PLASTIC, 1.0, probs=torch.tensor([0.9, 0.1, 0.0, 0.0]))
+    buffer.add(points, axis, -1, 1.0, probs=edge_reading, at_edge=True)
+    buffer.add(points, axis, -1, 1.0)  # geometry only: no reading kept
+    mapper = type("Mapper", (), {"memory": type("Memory", (), {"touches": buffer})})()
+    got = abstentions(mapper)
+    assert len(got.points) == 1 and got.at_edge.tolist() == [True]
+    np.testing.assert_allclose(got.probs, edge_reading[None].numpy())
+    empty = type(
+        "Mapper",
+        (),
+        {"memory": type("Memory", (), {"touches": TouchBuffer(torch.device("cpu"), None)})},
+    )()
+    assert len(abstentions(empty).points) == 0
