@@ -276,10 +276,10 @@ class TouchPlanner:
         self.unreached = self.unreached + 1 if confirm_reachable is False else 0
         reach = self.config.out_of_reach_m
         after = self.config.confirm_regrasp_after
-        reasons = {
+        reasons = {  # the first that holds names the regrasp: a confirm regrasp aims elsewhere
+            "confirm": after is not None and self.unreached >= after,
             "starved": self.starved >= self.config.regrasp_after,
             "away": reach is not None and hotspot_height_m is not None and hotspot_height_m > reach,
-            "confirm": after is not None and self.unreached >= after,
         }
         due = any(reasons.values()) and (
             touchdown_s - self.last_regrasp_s >= self.config.regrasp_gap_s
