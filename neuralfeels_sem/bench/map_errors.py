@@ -212,16 +212,17 @@ def pooled_lines(pooled: dict) -> str:
     def pct(value: float | None) -> str:
         return "  -" if value is None else f"{value:3.0f}"
 
-    lines = ["materials by frames read rightly: " + ", ".join(
+    bins = [
         f"{b['from']}{'+' if b['to'] is None else '-' + str(b['to'])}: {b['materials']}"
-        f" (recall {pct(b['mean_recall_pct'])} %)" for b in pooled["materials_by_frames_right"]
-    )]  # fmt: skip
+        f" (recall {pct(b['mean_recall_pct'])} %)"
+        for b in pooled["materials_by_frames_right"]
+    ]
+    lines = ["materials by frames read rightly: " + ", ".join(bins)]
     out = pooled["outvoted"]
     lines.append(f"readings the vote left out: {out['readings']}, right {pct(out['right_pct'])} %")
     for reason, rows in pooled["abstained_by_confidence"].items():
-        lines.append(f"abstained ({reason}), top class right by confidence: " + ", ".join(
-            f">={r['from']}: {pct(r['right_pct'])} % of {r['frames']}" for r in rows
-        ))  # fmt: skip
+        cells = [f">={r['from']}: {pct(r['right_pct'])} % of {r['frames']}" for r in rows]
+        lines.append(f"abstained ({reason}), top class right by confidence: " + ", ".join(cells))
     rare = pooled["abstained_rare_material"]
     lines.append(
         f"abstained readings naming a material the map nearly lacks: {rare['frames']},"

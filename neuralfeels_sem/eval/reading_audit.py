@@ -103,17 +103,16 @@ def abstained_by_confidence(obj: MaterialObject, abstained: Abstentions) -> dict
     """Per reason (`edge`, `low_confidence`) and confidence bin: frames, top class right."""
     truth = np.array([majority_truth(obj, p) for p in abstained.points], dtype=np.int64)
     top, confidence = _top(abstained)
+    last = len(CONFIDENCE_EDGES) - 2  # the top bin includes 1.0 itself
+    bin_of = np.minimum(np.searchsorted(CONFIDENCE_EDGES, confidence, side="right") - 1, last)
     out = {}
     for reason, mask in (("edge", abstained.at_edge), ("low_confidence", ~abstained.at_edge)):
         rows = []
-        for lo, hi in zip(CONFIDENCE_EDGES[:-1], CONFIDENCE_EDGES[1:]):
-            inside = mask & (truth >= 0) & (confidence >= lo) & (confidence < hi)
-            if hi == CONFIDENCE_EDGES[-1]:
-                inside |= mask & (truth >= 0) & (confidence >= hi)
-            right = int((top[inside] == truth[inside]).sum())
-            frames = int(inside.sum())
-            rows.append({"from": lo, "to": hi, "frames": frames, "right": right,
-                         "right_pct": _pct(right, frames)})  # fmt: skip
+        for k, (lo, hi) in enumerate(zip(CONFIDENCE_EDGES[:-1], CONFIDENCE_EDGES[1:])):
+            inside = mask & (truth >= 0) & (bin_of == k)
+            frames, right = int(inside.sum()), int((top[inside] == truth[inside]).sum())
+            rows.append({"from": lo, "to": hi, "frames": frames, "right": right})
+            rows[-1]["right_pct"] = _pct(right, frames)
         out[reason] = rows
     return out
 
@@ -125,7 +124,6 @@ def abstained_rare(
     fewer than RARE_KEPT readings of: the ones a planner might send a finger back for."""
     top, confidence = _top(abstained)
     kept = np.bincount([read for read, _, k in found if k], minlength=abstained.probs.shape[1])
-    kept = np.append(kept, np.zeros(max(0, int(top.max(initial=0)) + 1 - len(kept)), int))
     rare = (confidence >= RARE_MIN_CONFIDENCE) & (kept[top] < RARE_KEPT)
     truth = [majority_truth(obj, abstained.points[i]) for i in np.flatnonzero(rare)]
     judged = [(int(top[i]), t) for i, t in zip(np.flatnonzero(rare), truth) if t >= 0]
@@ -156,10 +154,8 @@ FRAMES_RIGHT_BINS = ((0, 1), (2, 4), (5, 9), (10, None))  # materials by frames 
 def pool_audits(audits: list[dict]) -> dict:
     """Several runs' audits pooled: materials by frames read rightly (count, mean recall in
     the map, of those present whose recall is known), and the summed counts of the rest."""
-    materials = [
-        row for audit in audits for row in audit["per_material"].values()
-        if row["map_recall_pct"] is not None
-    ]  # fmt: skip
+    rows_of = (audit["per_material"].values() for audit in audits)
+    materials = [row for rows in rows_of for row in rows if row["map_recall_pct"] is not None]
     by_frames = []
     for lo, hi in FRAMES_RIGHT_BINS:
         rows = [
@@ -171,15 +167,7 @@ def pool_audits(audits: list[dict]) -> dict:
         by_frames.append({"from": lo, "to": hi, "materials": len(rows), "mean_recall_pct": recall})
     outvoted_sum = {k: sum(a["outvoted"][k] for a in audits) for k in ("readings", "right")}
     rare = {k: sum(a["abstained_rare_material"][k] for a in audits) for k in ("frames", "right")}
-    bins = {}
-    for reason in ("edge", "low_confidence"):
-        bins[reason] = [
-            {**row, "frames": sum(a["abstained_by_confidence"][reason][i]["frames"] for a in audits),
-             "right": sum(a["abstained_by_confidence"][reason][i]["right"] for a in audits)}
-            for i, row in enumerate(audits[0]["abstained_by_confidence"][reason])
-        ] if audits else []  # fmt: skip
-        for row in bins[reason]:
-            row["right_pct"] = _pct(row["right"], row["frames"])
+    bins = {reason: _summed_bins(audits, reason) for reason in ("edge", "low_confidence")}
     return {
         "materials_by_frames_right": by_frames,
         "outvoted": {
@@ -189,6 +177,18 @@ def pool_audits(audits: list[dict]) -> dict:
         "abstained_by_confidence": bins,
         "abstained_rare_material": {**rare, "right_pct": _pct(rare["right"], rare["frames"])},
     }
+
+
+def _summed_bins(audits: list[dict], reason: str) -> list[dict]:
+    """One reason's confidence bins, frames and right answers summed over the audits."""
+    if not audits:
+        return []
+    rows = []
+    for k, row in enumerate(audits[0]["abstained_by_confidence"][reason]):
+        frames = sum(a["abstained_by_confidence"][reason][k]["frames"] for a in audits)
+        right = sum(a["abstained_by_confidence"][reason][k]["right"] for a in audits)
+        rows.append({**row, "frames": frames, "right": right, "right_pct": _pct(right, frames)})
+    return rows
 
 
 def _top(abstained: Abstentions) -> tuple[np.ndarray, np.ndarray]:

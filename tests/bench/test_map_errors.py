@@ -68,3 +68,15 @@ def test_abstentions_are_the_unlabelled_touches_with_a_reading() -> None:
         {"memory": type("Memory", (), {"touches": TouchBuffer(torch.device("cpu"), None)})},
     )()
     assert len(abstentions(empty).points) == 0
+
+
+def test_pooled_lines_name_each_figure(sphere) -> None:
+    from neuralfeels_sem.bench.map_errors import pooled_lines
+    from neuralfeels_sem.eval.reading_audit import Abstentions, pool_audits, reading_audit
+
+    obj, _ = sphere
+    touches = TouchSet([_press(+1.0), _press(-1.0)], [PLASTIC, PLASTIC], [True, False])
+    audit = reading_audit(obj, touches, Abstentions([], [], []), list(obj.class_names))
+    text = pooled_lines(pool_audits([audit]))
+    assert "readings the vote left out: 1, right   0 %" in text
+    assert "abstained (edge)" in text and "naming a material the map nearly lacks: 0" in text
