@@ -151,9 +151,10 @@ class TouchAdvisor:
 
     def _unconfirmed(self, mapper) -> np.ndarray:
         """(K, 3) readings the vote left out that a press should confirm (field frame):
-        for the confirm term, and for a sensor that plans touches (its confirm regrasps)."""
+        for the confirm term and for a sensor's confirm regrasps; the vote they take costs
+        milliseconds a frame, so not computed for nobody."""
         score = self.config.score
-        if score.confirm_weight <= 0 and not getattr(self.sensor, "accepts_advice", False):
+        if score.confirm_weight <= 0 and not getattr(self.sensor, "confirm_regrasps", False):
             return np.zeros((0, 3))
         points = mapper.memory.touches.unconfirmed_readings(score.confirm_m)
         return points.double().cpu().numpy()

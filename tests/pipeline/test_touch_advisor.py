@@ -180,11 +180,25 @@ def test_a_reading_left_out_by_the_vote_draws_the_next_press_with_the_confirm_te
     plain = TouchAdvisor(TouchAdvisorConfig(surface_points=256), None, tmp_path)
     plain.on_frame(_frame(0), {}, np.eye(4), Mapper())  # off: the mapper's memory is not read
     assert len(plain.advice.unconfirmed) == 0
-    # a sensor that plans touches gets the readings to confirm even with the term off
-    planned = TouchAdvisor(TouchAdvisorConfig(surface_points=256), AdvisedSensor(), tmp_path)
+    # a sensor that regrasps to confirm gets the readings even with the term off; one that
+    # only follows the advice does not (the vote they take is not free)
+    regrasping = AdvisedSensor()
+    regrasping.confirm_regrasps = True
+    planned = TouchAdvisor(TouchAdvisorConfig(surface_points=256), regrasping, tmp_path)
     planned.on_frame(_frame(0), {}, np.eye(4), mapper)
     np.testing.assert_allclose(planned.advice.unconfirmed, lone[:1].numpy(), atol=1e-7)
+    following = TouchAdvisor(TouchAdvisorConfig(surface_points=256), AdvisedSensor(), tmp_path)
+    following.on_frame(_frame(0), {}, np.eye(4), mapper)
+    assert len(following.advice.unconfirmed) == 0
     advisor.write()
     assert json.loads((tmp_path / SUGGESTIONS_FILE).read_text())["unconfirmed_readings"] == 1
     with pytest.raises(ValueError, match="confirm_weight"):
         TouchScoreConfig(confirm_weight=1.5)
+
+
+def test_a_sim_sensor_asks_for_readings_to_confirm_only_when_it_regrasps_for_them() -> None:
+    from neuralfeels_sem.sensors.sim import SimSensor
+
+    assert SimSensor(policy="active", planner={"confirm_regrasp_after": 4}).confirm_regrasps
+    assert not SimSensor(policy="active").confirm_regrasps
+    assert not SimSensor(planner={"confirm_regrasp_after": 4}).confirm_regrasps  # scripted

@@ -193,6 +193,11 @@ class SimSensor(Sensor):
         """Whether the touches follow the map's advice (policy=active)."""
         return self.policy == "active"
 
+    @property
+    def confirm_regrasps(self) -> bool:
+        """Whether the planner regrasps for readings to confirm (its confirm_regrasp_after)."""
+        return self.accepts_advice and self.planner_options.get("confirm_regrasp_after") is not None
+
     def advise(self, frame_index: int, advice) -> None:
         """The map's TouchAdvice after mapping `frame_index` (sim/touch_planner.py)."""
         with self._advice_ready:
