@@ -12,8 +12,8 @@ A low material map raises three questions that the touches the mapper stored ans
 
 A reading is one material one touch (one finger, one frame) read: a touch across a border
 read by patch readings is one reading per material. It is right when that material is the
-majority ground truth under the points that read it. Numpy only; the caller gathers the
-touches (bench/map_errors.py).
+majority ground truth under the points that read it. The caller gathers the touches
+(bench/map_errors.py).
 """
 
 from __future__ import annotations
@@ -21,9 +21,10 @@ from __future__ import annotations
 from dataclasses import dataclass
 
 import numpy as np
+import torch
 
 from neuralfeels_sem.eval.error_sources import TouchSet
-from neuralfeels_sem.mapping.touch_memory import READ_SHARE
+from neuralfeels_sem.mapping.touch_memory import materials_read
 from neuralfeels_sem.objects.material_object import MaterialObject
 
 CONFIDENCE_EDGES = (0.0, 0.9, 0.99, 0.999, 0.9999, 1.0)  # bins of the top-class probability
@@ -53,25 +54,19 @@ class Abstentions:
 
 def majority_truth(obj: MaterialObject, points: np.ndarray) -> int:
     """The most common true material under the points (-1 where all are ignored)."""
-    truth = obj.labels_at(np.asarray(points, np.float64).reshape(-1, 3))
-    truth = truth[truth >= 0]
-    return int(np.bincount(truth).argmax()) if len(truth) else -1
+    return _majority(obj.labels_at(np.asarray(points, np.float64).reshape(-1, 3)))
 
 
 def readings(obj: MaterialObject, touches: TouchSet) -> list[tuple[int, int, bool]]:
     """(material read, its majority truth, kept by the vote) for every reading: each
-    material on at least READ_SHARE of a touch's labelled points, as the vote counts them."""
+    material the mapper counts as read by a touch (touch_memory.materials_read)."""
     out = []
     for t, points in enumerate(touches.points):
         read, used = touches.labels_of(t), touches.used_labels_of(t)
-        labelled = read[read >= 0]
-        for material in np.unique(labelled):
+        truth = obj.labels_at(points) if (read >= 0).any() else None
+        for material in materials_read(torch.as_tensor(read)):
             mine = read == material
-            if mine.sum() < READ_SHARE * len(labelled):
-                continue  # a sliver the mapper does not count as read (materials_read)
-            out.append(
-                (int(material), majority_truth(obj, points[mine]), bool((used[mine] >= 0).any()))
-            )
+            out.append((material, _majority(truth[mine]), bool((used[mine] >= 0).any())))
     return out
 
 
@@ -177,6 +172,12 @@ def pool_audits(audits: list[dict]) -> dict:
         "abstained_by_confidence": bins,
         "abstained_rare_material": {**rare, "right_pct": _pct(rare["right"], rare["frames"])},
     }
+
+
+def _majority(truth: np.ndarray) -> int:
+    """The most common of these true materials, ignored faces (-1) left out (-1: none)."""
+    truth = truth[truth >= 0]
+    return int(np.bincount(truth).argmax()) if len(truth) else -1
 
 
 def _summed_bins(audits: list[dict], reason: str) -> list[dict]:
