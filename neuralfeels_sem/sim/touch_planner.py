@@ -248,8 +248,10 @@ class TouchPlanner:
         return np.lexsort((np.arange(len(points)), -key)), scores
 
     def confirm_reachable(self, points: np.ndarray) -> bool | None:
-        """Whether a screened touch would confirm an unconfirmed reading (None: none to confirm)."""
-        if self.advice is None or not len(self.advice.unconfirmed):
+        """Whether a screened touch would confirm an unconfirmed reading (None: none to
+        confirm, or no confirm regrasps)."""
+        off = self.config.confirm_regrasp_after is None
+        if off or self.advice is None or not len(self.advice.unconfirmed):
             return None
         return bool(self.advice.confirms(points).any())
 
