@@ -21,6 +21,11 @@ class EfficientNetClassifierConfig:
     # Above 0: an imprint past max_edge_share read confidently keeps its label, trusted
     # this much by the map (TouchLabel.weight; no patch readings) instead of none.
     edge_label_weight: float = 0.0
+    # Above 0: an imprint past max_edge_share keeps its label (at full trust) where the same
+    # finger named that material at >= edge_streak_confidence on this many frames just
+    # before (perception/classifier/edge_streak.py). 0: off.
+    edge_streak_frames: int = 0
+    edge_streak_confidence: float = 0.99
     edge_px: int = 16
     contact_threshold: float = 30.0
     contact_min_area: float = 0.01
@@ -83,6 +88,14 @@ class EfficientNetClassifierConfig:
         if not 0.0 <= self.edge_label_weight <= 1.0:
             raise ValueError(
                 f"classifier.edge_label_weight={self.edge_label_weight} must be in [0, 1]"
+            )
+        if self.edge_streak_frames < 0:
+            raise ValueError(
+                f"classifier.edge_streak_frames={self.edge_streak_frames} must be >= 0 (0: off)"
+            )
+        if not 0.0 < self.edge_streak_confidence <= 1.0:
+            raise ValueError(
+                f"classifier.edge_streak_confidence={self.edge_streak_confidence} must be in (0, 1]"
             )
         if self.edge_px < 0:
             raise ValueError(f"classifier.edge_px={self.edge_px} must be >= 0")

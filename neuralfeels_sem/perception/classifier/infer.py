@@ -22,6 +22,7 @@ import torch
 from neuralfeels_sem.core.errors import ConfigError, DataError
 from neuralfeels_sem.core.frame import TactileReading
 from neuralfeels_sem.perception.classifier.checkpoint import ClassifierCheckpoint, load_checkpoint
+from neuralfeels_sem.perception.classifier.edge_streak import EdgeStreak
 from neuralfeels_sem.perception.classifier.graphed import GraphedModel
 from neuralfeels_sem.perception.classifier.model import build_model, fold_batch_norms
 from neuralfeels_sem.perception.classifier.patches import (
@@ -80,6 +81,8 @@ class MaterialClassifier:
         max_edge_share: float = 0.5,
         edge_px: int = 16,
         edge_label_weight: float = 0.0,
+        edge_streak_frames: int = 0,
+        edge_streak_confidence: float = 0.99,
         contact_threshold: float = 30.0,
         contact_min_area: float = 0.01,
         contact_blur_px: float = 3.0,
@@ -110,6 +113,7 @@ class MaterialClassifier:
         if not 0.0 <= edge_label_weight <= 1.0:
             raise ValueError(f"edge_label_weight={edge_label_weight} must be in [0, 1]")
         self.edge_label_weight = float(edge_label_weight)
+        self.edge_streak = EdgeStreak(int(edge_streak_frames), float(edge_streak_confidence))
         self.gate = ContactGate(contact_threshold, contact_min_area, contact_blur_px)
         self.background_dir = background_dir
         self.first_frame_background = first_frame_background
@@ -293,22 +297,34 @@ class MaterialClassifier:
                 [self.background_for(readings[i]) for i in touched],
             )
             for i, p in zip(touched, probs):
-                top = int(p.argmax())
-                labels[i].probs = p
-                labels[i].confidence = float(p[top])
-                labels[i].at_edge = at_edge[i]
-                if p[top] < self.min_confidence or (at_edge[i] and not self.edge_label_weight):
-                    labels[i].low_confidence = True
-                    labels[i].label = NO_LABEL
-                else:
-                    labels[i].label = top
-                    if at_edge[i]:
-                        labels[i].weight = self.edge_label_weight
+                self._label(labels[i], p, at_edge[i])
             if self.patch_spacing_px > 0:
                 read = [i for i in touched if not at_edge[i]]
                 self._read_patches([readings[i] for i in read], [masks[i] for i in read],
                                    [labels[i] for i in read])  # fmt: skip
+        for r, label in zip(readings, labels):
+            top = int(label.probs.argmax()) if label.probs is not None else None
+            self.edge_streak.update(r.finger, top, label.confidence)
         return labels
+
+    def _label(self, label: TouchLabel, probs: np.ndarray, at_edge: bool) -> None:
+        """Set a touch's label from its class probabilities: none below min_confidence,
+        none for an imprint along the border unless edge_label_weight trusts it some or the
+        finger's streak of confident frames naming this material backs it (EdgeStreak)."""
+        top = int(probs.argmax())
+        label.probs = probs
+        label.confidence = float(probs[top])
+        label.at_edge = at_edge
+        backed = at_edge and self.edge_streak.trusted(label.finger, top, label.confidence)
+        if probs[top] < self.min_confidence or (
+            at_edge and not backed and not self.edge_label_weight
+        ):
+            label.low_confidence = True
+            label.label = NO_LABEL
+            return
+        label.label = top
+        if at_edge and not backed:
+            label.weight = self.edge_label_weight
 
     def _read_patches(
         self, readings: Sequence[TactileReading], masks: list[np.ndarray], labels: list[TouchLabel]

@@ -1,0 +1,53 @@
+"""Per finger, how many frames in a row the classifier has named one material confidently.
+
+An imprint along the sensor's border (a tilted pad's edge) is misread often enough that
+its reading gets no label (classifier.max_edge_share). But where the same finger has named
+the same material confidently on the frames just before, the edge reading is one more frame
+of a contact the classifier already reads steadily: on the development objects (30 s runs,
+mapping seeds 0-2) edge readings at confidence >= 0.99 were right 83 % of the time alone,
+and 97 % after two such frames of the same finger naming the same material.
+"""
+
+from __future__ import annotations
+
+from dataclasses import dataclass, field
+
+
+@dataclass
+class EdgeStreak:
+    """Counts each finger's run of consecutive confident readings naming one material.
+
+    `frames` 0 is off: `trusted` is then always False.
+    """
+
+    frames: int = 0
+    confidence: float = 0.99
+    _runs: dict[str, tuple[int, int]] = field(default_factory=dict)  # finger -> (label, run)
+
+    def __post_init__(self) -> None:
+        if self.frames < 0:
+            raise ValueError(f"edge_streak_frames={self.frames} must be >= 0 (0: off)")
+        if not 0.0 < self.confidence <= 1.0:
+            raise ValueError(f"edge_streak_confidence={self.confidence} must be in (0, 1]")
+
+    def trusted(self, finger: str, top: int, confidence: float) -> bool:
+        """True when this reading (top class, its probability) follows at least `frames`
+        confident readings of `top` by the same finger on the frames just before."""
+        label, run = self._runs.get(finger, (-1, 0))
+        return (
+            self.frames > 0
+            and confidence >= self.confidence
+            and label == top
+            and run >= self.frames
+        )
+
+    def update(self, finger: str, top: int | None, confidence: float) -> None:
+        """Record this frame's reading of `finger` (`top` None: no contact), after `trusted`."""
+        if top is None or confidence < self.confidence:
+            self._runs.pop(finger, None)
+            return
+        label, run = self._runs.get(finger, (-1, 0))
+        self._runs[finger] = (top, run + 1 if label == top else 1)
+
+    def reset(self) -> None:
+        self._runs.clear()

@@ -1,0 +1,94 @@
+"""EdgeStreak: an imprint along the border keeps its label only after the same finger read
+the same material confidently on the frames just before."""
+
+from __future__ import annotations
+
+from pathlib import Path
+
+import numpy as np
+import pytest
+import torch
+
+from neuralfeels_sem.configs.classifier import EfficientNetClassifierConfig
+from neuralfeels_sem.perception.classifier import MaterialClassifier
+from neuralfeels_sem.perception.classifier.checkpoint import save_checkpoint
+from neuralfeels_sem.perception.classifier.edge_streak import EdgeStreak
+from neuralfeels_sem.perception.classifier.model import build_model
+from neuralfeels_sem.perception.classifier.transforms import IMAGENET_MEAN, IMAGENET_STD
+from neuralfeels_sem.perception.touch import NO_LABEL
+from tests.perception.synthetic_tactile import CLASSES, background, pressed
+from tests.perception.test_classifier_infer import reading
+
+
+def test_streak_counts_consecutive_confident_readings_per_finger() -> None:
+    streak = EdgeStreak(frames=2, confidence=0.99)
+    assert not streak.trusted("index", 1, 0.999)  # nothing read before
+    streak.update("index", 1, 0.995)
+    assert not streak.trusted("index", 1, 0.999)  # one frame is not a streak of two
+    streak.update("index", 1, 0.999)
+    assert streak.trusted("index", 1, 0.999)
+    assert not streak.trusted("index", 2, 0.999)  # another material
+    assert not streak.trusted("index", 1, 0.98)  # the reading itself not confident
+    assert not streak.trusted("thumb", 1, 0.999)  # another finger's streak
+    streak.update("index", 1, 0.5)  # an unsure frame ends the streak
+    assert not streak.trusted("index", 1, 0.999)
+    streak.update("index", 1, 0.999)
+    streak.update("index", 1, 0.999)
+    streak.update("index", None, 0.0)  # so does a frame out of contact
+    assert not streak.trusted("index", 1, 0.999)
+    streak.update("index", 3, 0.999)
+    streak.update("index", 1, 0.999)  # a change of material starts a new streak
+    assert not streak.trusted("index", 1, 0.999)
+    assert not EdgeStreak(frames=0).trusted("index", 1, 1.0)  # off
+
+
+def test_bad_settings_are_value_errors() -> None:
+    with pytest.raises(ValueError, match="edge_streak_frames"):
+        EdgeStreak(frames=-1)
+    with pytest.raises(ValueError, match="edge_streak_confidence"):
+        EdgeStreak(confidence=0.0)
+    with pytest.raises(ValueError, match="classifier.edge_streak_frames"):
+        EfficientNetClassifierConfig(edge_streak_frames=-2)
+    with pytest.raises(ValueError, match="classifier.edge_streak_confidence"):
+        EfficientNetClassifierConfig(edge_streak_confidence=1.5)
+
+
+@pytest.fixture(scope="module")
+def checkpoint(tmp_path_factory) -> Path:
+    torch.manual_seed(0)
+    path = tmp_path_factory.mktemp("ckpt") / "classifier.pt"
+    save_checkpoint(path, build_model(4), CLASSES, 32, list(IMAGENET_MEAN), list(IMAGENET_STD))
+    return path
+
+
+def one_hot(top: int, confidence: float) -> np.ndarray:
+    p = np.full(len(CLASSES), (1.0 - confidence) / (len(CLASSES) - 1), np.float32)
+    p[top] = confidence
+    return p
+
+
+def test_classifier_labels_an_edge_imprint_backed_by_the_fingers_streak(checkpoint: Path) -> None:
+    bg = background(0)
+    strip = bg.astype(np.int16)
+    strip[100:220, 222:] += 60  # contact only along the border
+    strip = np.clip(strip, 0, 255).astype(np.uint8)
+    centred = pressed(0, 1, np.random.default_rng(2))
+    clf = MaterialClassifier(
+        CLASSES, checkpoint=str(checkpoint), device="cpu", patch_spacing_px=0,
+        edge_streak_frames=2, edge_streak_confidence=0.99,
+    )  # fmt: skip
+    queue: list[np.ndarray] = []
+    clf.predict_images = lambda images, backgrounds: np.stack([queue.pop(0) for _ in images])
+
+    def read(image: np.ndarray, top: int, confidence: float):
+        queue.append(one_hot(top, confidence))
+        return clf.classify([reading("index", image, bg)])[0]
+
+    assert read(strip, 1, 0.999).label == NO_LABEL  # an edge imprint alone: no label
+    assert read(centred, 1, 0.995).usable
+    edge = read(strip, 1, 0.999)  # after two confident metal frames (the first an edge one)
+    assert edge.usable and edge.at_edge and edge.label == 1 and edge.weight == 1.0
+    assert read(strip, 2, 0.999).label == NO_LABEL  # names another material
+    read(centred, 1, 0.995)
+    read(centred, 1, 0.9)  # labelled, but not confident enough to extend the streak
+    assert read(strip, 1, 0.999).label == NO_LABEL
