@@ -7,27 +7,15 @@ from pathlib import Path
 import cv2
 import numpy as np
 import pytest
-import torch
 
 from neuralfeels_sem.configs.classifier import EfficientNetClassifierConfig
 from neuralfeels_sem.core.digit import DIGIT_INTRINSICS
 from neuralfeels_sem.core.errors import ConfigError
 from neuralfeels_sem.core.frame import TactileReading
 from neuralfeels_sem.perception.classifier import MaterialClassifier, OracleClassifier
-from neuralfeels_sem.perception.classifier.checkpoint import save_checkpoint
-from neuralfeels_sem.perception.classifier.model import build_model
-from neuralfeels_sem.perception.classifier.transforms import IMAGENET_MEAN, IMAGENET_STD
 from neuralfeels_sem.perception.contact import edge_share
 from neuralfeels_sem.perception.touch import NO_LABEL
 from tests.perception.synthetic_tactile import CLASSES, background, pressed
-
-
-@pytest.fixture(scope="module")
-def checkpoint(tmp_path_factory) -> Path:
-    torch.manual_seed(0)
-    path = tmp_path_factory.mktemp("ckpt") / "classifier.pt"
-    save_checkpoint(path, build_model(4), CLASSES, 32, list(IMAGENET_MEAN), list(IMAGENET_STD))
-    return path
 
 
 def reading(finger: str, image: np.ndarray, bg: np.ndarray | None, **gt) -> TactileReading:
@@ -41,21 +29,25 @@ def reading(finger: str, image: np.ndarray, bg: np.ndarray | None, **gt) -> Tact
     )
 
 
-def test_constructor_does_no_io_and_class_mismatch_is_a_config_error(checkpoint: Path) -> None:
+def test_constructor_does_no_io_and_class_mismatch_is_a_config_error(
+    untrained_checkpoint: Path,
+) -> None:
     clf = MaterialClassifier(
         CLASSES, checkpoint="/nonexistent/classifier.pt"
     )  # no error until used
     assert clf._model is None
     clf = MaterialClassifier(
-        ["plastic", "metal", "fabric"], checkpoint=str(checkpoint), device="cpu"
+        ["plastic", "metal", "fabric"], checkpoint=str(untrained_checkpoint), device="cpu"
     )
     with pytest.raises(ConfigError, match="trained for .* but materials="):
         clf.open()
 
 
-def test_classify_gates_contact_and_returns_probabilities(checkpoint: Path) -> None:
+def test_classify_gates_contact_and_returns_probabilities(untrained_checkpoint: Path) -> None:
     rng = np.random.default_rng(0)
-    clf = MaterialClassifier(CLASSES, checkpoint=str(checkpoint), device="cpu", min_confidence=0.0)
+    clf = MaterialClassifier(
+        CLASSES, checkpoint=str(untrained_checkpoint), device="cpu", min_confidence=0.0
+    )
     fingers = ["index", "middle", "ring", "thumb"]
     images = [background(0), pressed(1, 0, rng), pressed(2, 3, rng), background(3)]
     readings = [reading(f, im, background(i)) for i, (f, im) in enumerate(zip(fingers, images))]
@@ -72,8 +64,10 @@ def test_classify_gates_contact_and_returns_probabilities(checkpoint: Path) -> N
         assert t.usable
 
 
-def test_low_confidence_is_marked_not_forced(checkpoint: Path) -> None:
-    clf = MaterialClassifier(CLASSES, checkpoint=str(checkpoint), device="cpu", min_confidence=0.99)
+def test_low_confidence_is_marked_not_forced(untrained_checkpoint: Path) -> None:
+    clf = MaterialClassifier(
+        CLASSES, checkpoint=str(untrained_checkpoint), device="cpu", min_confidence=0.99
+    )
     t = clf.classify([reading("index", pressed(0, 1, np.random.default_rng(1)), background(0))])[0]
     assert (
         t.contact and t.probs is not None and t.confidence < 0.99
@@ -81,26 +75,26 @@ def test_low_confidence_is_marked_not_forced(checkpoint: Path) -> None:
     assert t.low_confidence and t.label == NO_LABEL and not t.usable
 
 
-def test_backgrounds_from_folder_or_first_frame(checkpoint: Path, tmp_path: Path) -> None:
+def test_backgrounds_from_folder_or_first_frame(untrained_checkpoint: Path, tmp_path: Path) -> None:
     cv2.imwrite(str(tmp_path / "index.png"), background(0)[..., ::-1])
     press = pressed(0, 2, np.random.default_rng(2))
     clf = MaterialClassifier(
-        CLASSES, checkpoint=str(checkpoint), device="cpu", background_dir=str(tmp_path)
+        CLASSES, checkpoint=str(untrained_checkpoint), device="cpu", background_dir=str(tmp_path)
     )
     assert clf.classify([reading("index", press, None)])[0].contact
     # No background anywhere: the first frame of a finger becomes its reference.
-    clf = MaterialClassifier(CLASSES, checkpoint=str(checkpoint), device="cpu")
+    clf = MaterialClassifier(CLASSES, checkpoint=str(untrained_checkpoint), device="cpu")
     assert not clf.classify([reading("ring", background(2), None)])[0].contact
     assert clf.classify([reading("ring", pressed(2, 0, np.random.default_rng(3)), None)])[0].contact
     strict = MaterialClassifier(
-        CLASSES, checkpoint=str(checkpoint), device="cpu", first_frame_background=False
+        CLASSES, checkpoint=str(untrained_checkpoint), device="cpu", first_frame_background=False
     )
     with pytest.raises(ConfigError, match="no background frame for finger thumb"):
         strict.classify([reading("thumb", background(3), None)])
 
 
-def test_predict_images_checks_shape(checkpoint: Path) -> None:
-    clf = MaterialClassifier(CLASSES, checkpoint=str(checkpoint), device="cpu")
+def test_predict_images_checks_shape(untrained_checkpoint: Path) -> None:
+    clf = MaterialClassifier(CLASSES, checkpoint=str(untrained_checkpoint), device="cpu")
     assert clf.predict_images(np.zeros((0, 320, 240, 3), np.uint8)).shape == (0, 4)
     assert clf.predict_images(np.zeros((3, 320, 240, 3), np.uint8)).shape == (3, 4)
     with pytest.raises(ValueError):
@@ -143,14 +137,14 @@ def test_oracle_needs_ground_truth() -> None:
         OracleClassifier(CLASSES).classify([reading("thumb", background(0), None)])
 
 
-def test_imprint_cut_off_by_the_sensor_edge_gets_no_label(checkpoint: Path) -> None:
+def test_imprint_cut_off_by_the_sensor_edge_gets_no_label(untrained_checkpoint: Path) -> None:
     """A strip along the border (a tilted pad's edge contact) is abstained, not guessed."""
     bg = background(0)
     strip = bg.astype(np.int16)
     strip[100:220, 222:] += 60  # contact only in the outer 18 columns
     strip = np.clip(strip, 0, 255).astype(np.uint8)
     centred = pressed(0, 1, np.random.default_rng(2))
-    kwargs = dict(checkpoint=str(checkpoint), device="cpu", min_confidence=0.0)
+    kwargs = dict(checkpoint=str(untrained_checkpoint), device="cpu", min_confidence=0.0)
     edge, centre = MaterialClassifier(CLASSES, **kwargs).classify(
         [reading("index", strip, bg), reading("index", centred, bg)]
     )

@@ -7,14 +7,10 @@ from pathlib import Path
 
 import numpy as np
 import pytest
-import torch
 
 from neuralfeels_sem.configs.classifier import EfficientNetClassifierConfig
 from neuralfeels_sem.perception.classifier import MaterialClassifier
-from neuralfeels_sem.perception.classifier.checkpoint import save_checkpoint
 from neuralfeels_sem.perception.classifier.edge_streak import EdgeStreak
-from neuralfeels_sem.perception.classifier.model import build_model
-from neuralfeels_sem.perception.classifier.transforms import IMAGENET_MEAN, IMAGENET_STD
 from neuralfeels_sem.perception.touch import NO_LABEL
 from tests.perception.synthetic_tactile import CLASSES, background, pressed
 from tests.perception.test_classifier_infer import reading
@@ -53,28 +49,22 @@ def test_bad_settings_are_value_errors() -> None:
         EfficientNetClassifierConfig(edge_streak_confidence=1.5)
 
 
-@pytest.fixture(scope="module")
-def checkpoint(tmp_path_factory) -> Path:
-    torch.manual_seed(0)
-    path = tmp_path_factory.mktemp("ckpt") / "classifier.pt"
-    save_checkpoint(path, build_model(4), CLASSES, 32, list(IMAGENET_MEAN), list(IMAGENET_STD))
-    return path
-
-
 def one_hot(top: int, confidence: float) -> np.ndarray:
     p = np.full(len(CLASSES), (1.0 - confidence) / (len(CLASSES) - 1), np.float32)
     p[top] = confidence
     return p
 
 
-def test_classifier_labels_an_edge_imprint_backed_by_the_fingers_streak(checkpoint: Path) -> None:
+def test_classifier_labels_an_edge_imprint_backed_by_the_fingers_streak(
+    untrained_checkpoint: Path,
+) -> None:
     bg = background(0)
     strip = bg.astype(np.int16)
     strip[100:220, 222:] += 60  # contact only along the border
     strip = np.clip(strip, 0, 255).astype(np.uint8)
     centred = pressed(0, 1, np.random.default_rng(2))
     clf = MaterialClassifier(
-        CLASSES, checkpoint=str(checkpoint), device="cpu", patch_spacing_px=0,
+        CLASSES, checkpoint=str(untrained_checkpoint), device="cpu", patch_spacing_px=0,
         edge_streak_frames=2, edge_streak_confidence=0.99,
     )  # fmt: skip
     queue: list[np.ndarray] = []
