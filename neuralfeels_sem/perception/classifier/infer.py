@@ -284,7 +284,8 @@ class MaterialClassifier:
         self.open()
         masks = [self.contact_mask(r) for r in readings]
         contact = [float(m.mean()) >= self.gate.min_area for m in masks]
-        # An imprint mostly along the sensor's border (a tilted pad's edge) gets no label.
+        # An imprint mostly along the sensor's border (a tilted pad's edge) gets no label
+        # unless the finger's streak of confident readings backs it (_label).
         at_edge = [
             self.max_edge_share < 1.0 and edge_share(m, self.edge_px) > self.max_edge_share
             for m in masks
