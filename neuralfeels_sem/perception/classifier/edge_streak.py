@@ -48,6 +48,3 @@ class EdgeStreak:
             return
         label, run = self._runs.get(finger, (-1, 0))
         self._runs[finger] = (top, run + 1 if label == top else 1)
-
-    def reset(self) -> None:
-        self._runs.clear()

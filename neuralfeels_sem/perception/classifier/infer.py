@@ -316,15 +316,15 @@ class MaterialClassifier:
         label.probs = probs
         label.confidence = float(probs[top])
         label.at_edge = at_edge
-        backed = at_edge and self.edge_streak.trusted(label.finger, top, label.confidence)
-        if probs[top] < self.min_confidence or (
-            at_edge and not backed and not self.edge_label_weight
-        ):
+        unbacked_edge = at_edge and not self.edge_streak.trusted(
+            label.finger, top, label.confidence
+        )
+        if probs[top] < self.min_confidence or (unbacked_edge and not self.edge_label_weight):
             label.low_confidence = True
             label.label = NO_LABEL
             return
         label.label = top
-        if at_edge and not backed:
+        if unbacked_edge:
             label.weight = self.edge_label_weight
 
     def _read_patches(
