@@ -216,7 +216,7 @@ class MappingSession:
                 self._map(item, realtime, total, snapshot_every, wall_start, bar)
         finally:
             producer.stop()
-            self.segment.producer_cpu_s = producer.cpu_s
+            self.segment.record_producer(producer.cpu_s, producer.stage_cpu_s)
             self._close_background(bar)
             bar.close()
 

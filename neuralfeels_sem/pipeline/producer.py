@@ -75,6 +75,8 @@ class FrameProducer:
         self.clock: PaceClock | None = None
         self._stop = threading.Event()
         self.cpu_s = 0.0  # the threads' CPU seconds, added as each ends
+        # CPU seconds by stage (acquire, classify, perceive), added frame by frame
+        self.stage_cpu_s: dict[str, float] = {}
         self._cpu_lock = threading.Lock()
         # acquire -> perceive hand-over: one frame, so acquisition runs one frame ahead
         self._acquired: queue.Queue | None = queue.Queue(maxsize=1) if acquire_thread else None
@@ -110,8 +112,26 @@ class FrameProducer:
 
     def _sensor_frames(self, ready: Callable[[], None]) -> Iterator[Frame]:
         if self.clock is not None:
-            return self.sensor.frames_from_clock(lambda: self._next_due_index(ready))
-        return (f for f in self.sensor.frames() if f.index > self.after_index)
+            frames = self.sensor.frames_from_clock(lambda: self._next_due_index(ready))
+        else:
+            frames = (f for f in self.sensor.frames() if f.index > self.after_index)
+        return self._timed(frames, "acquire")
+
+    def _timed(self, frames: Iterator[Frame], stage: str) -> Iterator[Frame]:
+        """`frames`, the CPU time spent making each added to `stage` (a wait for the next
+        stage sleeps, so it costs no CPU time)."""
+        frames = iter(frames)
+        while True:
+            cpu_start = time.thread_time()
+            frame = next(frames, None)
+            self._add_stage(stage, time.thread_time() - cpu_start)
+            if frame is None:
+                return
+            yield frame
+
+    def _add_stage(self, stage: str, seconds: float) -> None:
+        with self._cpu_lock:
+            self.stage_cpu_s[stage] = self.stage_cpu_s.get(stage, 0.0) + seconds
 
     def _next_due_index(self, ready: Callable[[], None]) -> int:
         """Realtime: the frame to make next, once the stage after this one is ready for it.
@@ -199,12 +219,16 @@ class FrameProducer:
                     self._stop.wait(max(0.0, -self.clock.lag(frame.index)))  # until it is due
                 expected = frame.index + 1
                 readings = list(frame.tactile.values())
+                cpu_start = time.thread_time()
                 labels = (
                     {r.finger: lab for r, lab in zip(readings, self.classify(readings))}
                     if readings
                     else {}
                 )
+                cpu_classified = time.thread_time()
                 self.perceive(frame)
+                self._add_stage("classify", cpu_classified - cpu_start)
+                self._add_stage("perceive", time.thread_time() - cpu_classified)
                 if self.clock is not None and first:
                     self.clock.restart()  # the stream starts with its first frame ready
                 self._streaming.set()

@@ -6,7 +6,7 @@ metrics.json covers the whole run: frames and wall time summed over the segments
 
 from __future__ import annotations
 
-from dataclasses import asdict, dataclass
+from dataclasses import asdict, dataclass, field
 
 
 @dataclass
@@ -31,11 +31,16 @@ class Segment:
     # the loop: the one busy for most of `wall_s` is what bounds the realtime factor.
     producer_cpu_s: float = 0.0
     mapper_cpu_s: float = 0.0
+    # The producer's CPU seconds by stage (acquire, classify, perceive): which one to speed up.
+    producer_stage_cpu_s: dict[str, float] = field(default_factory=dict)
 
     def add_lag(self, lag_s: float) -> None:
         self.lag_frames += 1
         self.lag_sum_s += lag_s
         self.lag_max_s = lag_s if self.lag_max_s is None else max(self.lag_max_s, lag_s)
+
+    def record_producer(self, cpu_s: float, stage_cpu_s: dict[str, float]) -> None:
+        self.producer_cpu_s, self.producer_stage_cpu_s = cpu_s, dict(stage_cpu_s)
 
     def add_frame(self, index: int, time_s: float) -> None:
         if self.first_time_s is None:
@@ -71,5 +76,14 @@ def run_totals(segments: list[Segment], frame_period_s: float) -> dict:
         "idle_steps": sum(s.idle_steps for s in segments),
         "producer_cpu_s": sum(s.producer_cpu_s for s in segments),
         "mapper_cpu_s": sum(s.mapper_cpu_s for s in segments),
+        "producer_stage_cpu_s": _summed_stages(segments),
         "segments": [s.to_dict() for s in segments],
     }
+
+
+def _summed_stages(segments: list[Segment]) -> dict[str, float]:
+    totals: dict[str, float] = {}
+    for segment in segments:
+        for stage, seconds in segment.producer_stage_cpu_s.items():
+            totals[stage] = totals.get(stage, 0.0) + seconds
+    return totals

@@ -89,13 +89,17 @@ def test_lag_and_drops_add_up_over_segments() -> None:
 
 
 def test_thread_cpu_adds_up_over_segments() -> None:
-    first = Segment(producer_cpu_s=2.0, mapper_cpu_s=1.0)
-    second = Segment(producer_cpu_s=0.5, mapper_cpu_s=3.0)
+    first = Segment(mapper_cpu_s=1.0)
+    first.record_producer(2.0, {"acquire": 0.5, "classify": 1.0})
+    second = Segment(mapper_cpu_s=3.0)
+    second.record_producer(0.5, {"classify": 0.25, "perceive": 0.125})
     totals = run_totals([first, second], 0.1)
     assert totals["producer_cpu_s"] == 2.5 and totals["mapper_cpu_s"] == 4.0
-    # A checkpoint written before these fields existed still loads (both 0).
-    old = {k: v for k, v in Segment().to_dict().items() if not k.endswith("_cpu_s")}
+    assert totals["producer_stage_cpu_s"] == {"acquire": 0.5, "classify": 1.25, "perceive": 0.125}
+    # A checkpoint written before these fields existed still loads (zeros, no stages).
+    old = {k: v for k, v in Segment().to_dict().items() if "_cpu_s" not in k}
     assert load_segments([old])[0].producer_cpu_s == 0.0
+    assert load_segments([old])[0].producer_stage_cpu_s == {}
 
 
 def test_pace_defaults_and_range_checks() -> None:

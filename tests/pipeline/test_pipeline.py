@@ -121,6 +121,11 @@ def test_offline_pipeline_gives_the_sequential_loops_figures(tmp_path, acquire) 
     threads = {"producer_cpu_s": 2 if acquire else 1, "mapper_cpu_s": 1}
     for key, n in threads.items():
         assert 0.0 < got[key] <= n * got["wall_s"] + 0.5, (key, got[key], got["wall_s"])
+    # The producer's time by stage: each stage some, together within the producer's threads.
+    stages = got["producer_stage_cpu_s"]
+    assert sorted(stages) == ["acquire", "classify", "perceive"]
+    assert all(seconds > 0.0 for seconds in stages.values()), stages
+    assert sum(stages.values()) <= got["producer_cpu_s"] + 1e-3
     for key in SAME_PERCEPTION:  # segmentation_ms_mean is a timing
         assert got["perception"][key] == expected["perception"][key], key
     for key in SAME_FIGURES:
