@@ -59,7 +59,7 @@ class EfficientNetClassifierConfig:
     # this confidence, else it abstains (at or below min_confidence: off).
     patch_disagree_confidence: float = 0.0
     # On a GPU: replay the forward from CUDA graphs, one launch per batch instead of a few
-    # hundred (perception/classifier/graphed.py); false runs it eagerly.
+    # hundred (perception/graphed.py); false runs it eagerly.
     cuda_graphs: bool = True
 
     def __post_init__(self) -> None:

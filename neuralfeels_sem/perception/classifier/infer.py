@@ -23,7 +23,6 @@ from neuralfeels_sem.core.errors import ConfigError, DataError
 from neuralfeels_sem.core.frame import TactileReading
 from neuralfeels_sem.perception.classifier.checkpoint import ClassifierCheckpoint, load_checkpoint
 from neuralfeels_sem.perception.classifier.edge_streak import EdgeStreak
-from neuralfeels_sem.perception.classifier.graphed import GraphedModel
 from neuralfeels_sem.perception.classifier.model import build_model, fold_batch_norms
 from neuralfeels_sem.perception.classifier.patches import (
     crop_around,
@@ -34,6 +33,7 @@ from neuralfeels_sem.perception.classifier.patches import (
 from neuralfeels_sem.perception.classifier.predict import predict_probs
 from neuralfeels_sem.perception.classifier.transforms import preprocess, resize_batch
 from neuralfeels_sem.perception.contact import ContactGate, edge_share
+from neuralfeels_sem.perception.graphed import GraphedModel
 from neuralfeels_sem.perception.touch import NO_LABEL, TouchLabel
 from neuralfeels_sem.utils.device import resolve_device
 from neuralfeels_sem.utils.paths import ASSETS_DIR
@@ -69,7 +69,7 @@ class MaterialClassifier:
         least this share of imprint pixels (0: anywhere on the contact).
     patch_disagree_confidence: a patch naming another material than the touch's (centre)
         label needs at least this confidence, else it abstains (below min_confidence: off).
-    cuda_graphs: on a GPU, replay the forward from CUDA graphs (perception/classifier/graphed.py).
+    cuda_graphs: on a GPU, replay the forward from CUDA graphs (perception/graphed.py).
     """
 
     def __init__(
@@ -191,6 +191,7 @@ class MaterialClassifier:
         model = fold_batch_norms(ckpt.build(self._device))  # inference only here
         if self.cuda_graphs and self._device.type == "cuda":
             model = GraphedModel(model)
+            model.capture((3, ckpt.input_size, ckpt.input_size), self._device)
         self._model = model
         self._ckpt = ckpt
         if self.background_dir is not None:

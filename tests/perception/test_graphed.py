@@ -1,4 +1,4 @@
-"""GraphedModel (perception/classifier/graphed.py) off the GPU: bucket sizes, bad input, and
+"""GraphedModel (perception/graphed.py) off the GPU: bucket sizes, bad input, and
 CPU inputs passed to the model as they are. The replay itself is checked against the eager
 forward in tests/gpu/test_gpu_paths.py."""
 
@@ -8,7 +8,7 @@ import pytest
 import torch
 from torch import nn
 
-from neuralfeels_sem.perception.classifier.graphed import BUCKETS, GraphedModel, bucket
+from neuralfeels_sem.perception.graphed import BUCKETS, GraphedModel, bucket
 
 
 def test_a_batch_goes_to_the_smallest_bucket_that_holds_it() -> None:

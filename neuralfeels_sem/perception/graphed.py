@@ -1,0 +1,102 @@
+"""A network's inference forward on a GPU replayed from CUDA graphs, one launch per batch.
+
+EfficientNet-B0's forward (the material classifier) is a few hundred small kernels, each
+launched from Python. On an H100 (a default run's profile, issue 22) a call cost 68 ms of
+CPU, more than the same forward on that machine's CPU (37 ms), and the frame producer spent
+about half its time there; the tactile depth network's forward and its bilinear upsampling
+(a decomposition run op by op in Python) cost the producer more CPU than its GPU work. A
+CUDA graph records the launches once and replays them with one call. Batches are padded up
+to the next bucket, so a handful of graphs serve every batch size: in inference, with batch
+norms in eval mode (or folded), a sample's output does not depend on the others in its
+batch.
+"""
+
+from __future__ import annotations
+
+import logging
+
+import torch
+from torch import Tensor, nn
+
+log = logging.getLogger(__name__)
+
+BUCKETS = (1, 2, 4, 8, 16, 32, 64)  # predict_probs sends at most 64 crops per call
+WARMUP_CALLS = 3  # eager calls on a side stream before a capture, as torch.cuda.graph asks
+Output = Tensor | tuple[Tensor, ...]
+
+
+def bucket(batch: int, buckets: tuple[int, ...] = BUCKETS) -> int | None:
+    """The smallest of `buckets` that holds `batch` samples; None above the largest."""
+    if batch < 1:
+        raise ValueError(f"batch of {batch} samples: need at least one")
+    return next((b for b in buckets if b >= batch), None)
+
+
+class GraphedModel:
+    """`model(x)` for an inference-only model whose output is a tensor or a tuple of
+    tensors, each with the batch first: CUDA inputs through one captured graph per bucket,
+    captured on first use or ahead by `capture`; CPU inputs, batches above the largest
+    bucket and any model whose capture failed (logged once) run the model as it is."""
+
+    training = False  # predict_probs puts a model in eval mode only when it is training
+
+    def __init__(self, model: nn.Module, buckets: tuple[int, ...] = BUCKETS) -> None:
+        if model.training:
+            raise ValueError("GraphedModel replays inference only: put the model in eval mode")
+        self.model = model
+        self.buckets = buckets
+        self._graphs: dict[int, tuple[torch.cuda.CUDAGraph, Tensor, Output]] = {}
+        self._pool = None  # one memory pool for every bucket's graph (replays never overlap)
+        self._eager = False
+
+    def __call__(self, x: Tensor) -> Output:
+        size = bucket(x.shape[0], self.buckets)
+        if x.device.type != "cuda" or self._eager or size is None:
+            return self.model(x)
+        entry = self._graphs.get(size) or self._capture(size, x)
+        if entry is None:
+            return self.model(x)
+        graph, static_in, static_out = entry
+        static_in[: x.shape[0]].copy_(x)
+        graph.replay()
+        n = x.shape[0]  # the next replay overwrites static_out: hand out copies
+        if isinstance(static_out, tuple):
+            return tuple(out[:n].clone() for out in static_out)
+        return static_out[:n].clone()
+
+    @torch.inference_mode()
+    def capture(self, sample_shape: tuple[int, ...], device: torch.device) -> None:
+        """Capture every bucket's graph now, for float32 samples of `sample_shape`.
+
+        A bucket's first capture costs far more than its replays (the first calls of each
+        convolution shape; seen on an H200: about 12 s for the classifier's seven buckets,
+        a fifth of a default run's loop), so a run captures them before its stream starts.
+        """
+        like = torch.zeros((1, *sample_shape), device=device)
+        for size in self.buckets:
+            if self._eager:
+                return
+            if size not in self._graphs:
+                self._capture(size, like)
+
+    def _capture(self, size: int, like: Tensor) -> tuple | None:
+        static_in = torch.zeros((size, *like.shape[1:]), dtype=like.dtype, device=like.device)
+        try:
+            if self._pool is None:
+                self._pool = torch.cuda.graph_pool_handle()
+            side = torch.cuda.Stream(like.device)
+            side.wait_stream(torch.cuda.current_stream(like.device))
+            with torch.cuda.stream(side):
+                for _ in range(WARMUP_CALLS):
+                    self.model(static_in)
+            torch.cuda.current_stream(like.device).wait_stream(side)
+            graph = torch.cuda.CUDAGraph()
+            # thread_local: the mapper's thread may use the GPU while this one captures.
+            with torch.cuda.graph(graph, pool=self._pool, capture_error_mode="thread_local"):
+                static_out = self.model(static_in)
+        except RuntimeError as exc:
+            log.warning("classifier: CUDA graph capture failed (%s); running it eagerly", exc)
+            self._eager = True
+            return None
+        self._graphs[size] = (graph, static_in, static_out)
+        return self._graphs[size]
