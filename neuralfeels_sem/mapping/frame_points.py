@@ -95,6 +95,10 @@ class PointExtractor:
         """Object-frame surface points per source: `camera` and each finger in contact."""
         return self.extract(frame, world_T_object, every_pixel=False)[0]
 
+    def load_models(self) -> None:
+        """Load the perception networks now rather than on the first frame."""
+        self.tactile_depth.load()
+
     def perceive(self, frame: Frame) -> None:
         """Segment the camera and infer the contact depths of `frame` now, ahead of mapping it.
 

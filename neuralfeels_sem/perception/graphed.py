@@ -45,7 +45,8 @@ class GraphedModel:
             raise ValueError("GraphedModel replays inference only: put the model in eval mode")
         self.model = model
         self.buckets = buckets
-        self._graphs: dict[int, tuple[torch.cuda.CUDAGraph, Tensor, Output]] = {}
+        # one graph per (bucket, sample shape, dtype): a graph replays one input shape only
+        self._graphs: dict[tuple, tuple[torch.cuda.CUDAGraph, Tensor, Output]] = {}
         self._pool = None  # one memory pool for every bucket's graph (replays never overlap)
         self._eager = False
 
@@ -53,31 +54,37 @@ class GraphedModel:
         size = bucket(x.shape[0], self.buckets)
         if x.device.type != "cuda" or self._eager or size is None:
             return self.model(x)
-        entry = self._graphs.get(size) or self._capture(size, x)
+        entry = self._graphs.get(_key(size, x)) or self._capture(size, x)
         if entry is None:
             return self.model(x)
         graph, static_in, static_out = entry
-        static_in[: x.shape[0]].copy_(x)
-        graph.replay()
-        n = x.shape[0]  # the next replay overwrites static_out: hand out copies
-        if isinstance(static_out, tuple):
-            return tuple(out[:n].clone() for out in static_out)
-        return static_out[:n].clone()
+        n = x.shape[0]
+        with torch.inference_mode():  # the graphs' buffers are inference tensors
+            static_in[:n].copy_(x)
+            graph.replay()
+            # the next replay overwrites static_out: hand out copies
+            if isinstance(static_out, tuple):
+                return tuple(out[:n].clone() for out in static_out)
+            return static_out[:n].clone()
 
     @torch.inference_mode()
     def capture(self, sample_shape: tuple[int, ...], device: torch.device) -> None:
         """Capture every bucket's graph now, for float32 samples of `sample_shape`.
 
         A bucket's first capture costs far more than its replays (the first calls of each
-        convolution shape; seen on an H200: about 12 s for the classifier's seven buckets,
-        a fifth of a default run's loop), so a run captures them before its stream starts.
+        convolution shape: in a default run on an H200 the first frame waited about 13 s for
+        the classifier's), so a run captures them before its clock starts.
         """
         like = torch.zeros((1, *sample_shape), device=device)
         for size in self.buckets:
             if self._eager:
                 return
-            if size not in self._graphs:
+            if _key(size, like) not in self._graphs:
                 self._capture(size, like)
+
+    def captured(self) -> list[tuple[int, tuple[int, ...]]]:
+        """(bucket, sample shape) of every graph captured so far, sorted."""
+        return sorted((size, shape) for size, shape, _ in self._graphs)
 
     def _capture(self, size: int, like: Tensor) -> tuple | None:
         static_in = torch.zeros((size, *like.shape[1:]), dtype=like.dtype, device=like.device)
@@ -95,8 +102,13 @@ class GraphedModel:
             with torch.cuda.graph(graph, pool=self._pool, capture_error_mode="thread_local"):
                 static_out = self.model(static_in)
         except RuntimeError as exc:
-            log.warning("classifier: CUDA graph capture failed (%s); running it eagerly", exc)
+            name = type(self.model).__name__
+            log.warning("%s: CUDA graph capture failed (%s); running it eagerly", name, exc)
             self._eager = True
             return None
-        self._graphs[size] = (graph, static_in, static_out)
-        return self._graphs[size]
+        self._graphs[_key(size, like)] = (graph, static_in, static_out)
+        return self._graphs[_key(size, like)]
+
+
+def _key(size: int, x: Tensor) -> tuple:
+    return size, tuple(x.shape[1:]), x.dtype

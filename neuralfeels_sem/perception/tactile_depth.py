@@ -80,8 +80,14 @@ class TactileDepth:
         self.full_press_intensity = float(config.full_press_intensity)
         self.blur_px = int(config.blur_px)
         self.min_contact_px = int(config.min_contact_px)
-        # Constructing the predictor reads nothing; the checkpoint loads on the first touch.
+        # Constructing the predictor reads nothing; the checkpoint loads in `load` or on the
+        # first touch.
         self.net = DepthNetPredictor(config.checkpoint, self.min_contact_px, device)
+
+    def load(self) -> None:
+        """Load the network now (source=net; else nothing to load), not on the first touch."""
+        if self.source == "net":
+            self.net.load()
 
     def __call__(self, reading: TactileReading) -> np.ndarray:
         if self.source == "gt":

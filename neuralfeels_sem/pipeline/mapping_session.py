@@ -1,22 +1,21 @@
 """One mapping run over an opened sensor: the frame loop behind `task=map`.
 
-A producer thread (producer.py) acquires or renders each frame, classifies its touches and runs
-the perception that needs no field (camera segmentation, tactile depth); this side, the
-mapper's, takes its frames from a bounded queue: logs the touches, estimates the object pose,
-adds the frame to the mapper (which trains the field) and tells the observers. At
-sensor.pace=offline every frame is mapped, in order, as by a sequential loop; at realtime the
-frames come at the sensor's clock, the mapper takes the newest one, drops any due more than
-`max_lag_s` ago and counts them (pace.py), and runs single steps while no new frame has come.
-Every `every_k_frames` frames (and on the last) the field is scored and every
-len/`progression_snapshots` frames a progression snapshot is written, on a copy of the field by
-a worker thread (background_eval.py); every `checkpoint_every` frames the mapper's state is
-copied here, between steps, and written by another worker (checkpoint_writer.py), so the
-mapper's thread only pays for the copies. A run resumed from a checkpoint skips the frames it
-already holds and continues where it stopped, with the scorer's curve, the pose source's state
-and the earlier segments' frame counts and wall times restored. SIGINT or SIGTERM stops the loop
-after the frame in progress (the result is then marked partial); a producer that fails ends the
-loop the same way and `failure` holds its error. At the end: the final checkpoint, the final
-scores and the coloured mesh. Every file is written atomically.
+A producer thread (producer.py) acquires or renders each frame, classifies its touches and runs the
+perception that needs no field (camera segmentation, tactile depth); this side, the mapper's, takes
+its frames from a bounded queue: logs the touches, estimates the object pose, adds the frame to the
+mapper (which trains the field) and tells the observers. At sensor.pace=offline every frame is
+mapped, in order, as by a sequential loop; at realtime the frames come at the sensor's clock, the
+mapper takes the newest one, drops any due more than `max_lag_s` ago and counts them (pace.py), and
+runs single steps while no new frame has come. Every `every_k_frames` frames (and on the last) the
+field is scored and every len/`progression_snapshots` frames a progression snapshot is written, on a
+copy of the field by a worker thread (background_eval.py); every `checkpoint_every` frames the
+mapper's state is copied here, between steps, and written by another worker (checkpoint_writer.py),
+so the mapper's thread only pays for the copies. A run resumed from a checkpoint skips the frames it
+already holds and continues where it stopped, with the scorer's curve, the pose source's state and
+the earlier segments' frame counts and wall times restored. SIGINT or SIGTERM stops the loop after
+the frame in progress (the result is then marked partial); a producer that fails ends the loop the
+same way and `failure` holds its error. At the end: the final checkpoint, the final scores and the
+coloured mesh. Every file is written atomically.
 """
 
 from __future__ import annotations
@@ -70,7 +69,7 @@ class MappingSession:
 
     Args:
         mapper: the online mapper (its field is the one scored).
-        classifier: has `classify(readings) -> labels`, one per tactile reading.
+        classifier: has `open()` and `classify(readings) -> labels` (one per reading).
         scorer: the run's scorer (curve, touch log, snapshots, final figures).
         pose_source: where each frame's object pose comes from (gt or tracked).
         out: the run directory (checkpoint.pt, progression/, material_mesh.ply).
@@ -110,8 +109,7 @@ class MappingSession:
         self.background: BackgroundEval | None = None  # scoring off the mapper's path
         self.writer: CheckpointWriter | None = None  # checkpoint writes off the mapper's path
         self.stop = StopOnSignal(out)
-        self.checkpoint_path = out / "checkpoint.pt"
-        self.snapshots_dir = out / "progression"
+        self.checkpoint_path, self.snapshots_dir = out / "checkpoint.pt", out / "progression"
 
     def run(self, sensor: Sensor, resume: str | None = None) -> dict:
         """Map every frame of the opened `sensor`; returns the scores, frame counts and timing.
@@ -126,6 +124,8 @@ class MappingSession:
         self.last_index = self._resume(resume) if resume else -1
         frame_period = float(getattr(sensor, "frame_period_s", 0.0))
         self.writer = CheckpointWriter(self.checkpoint_path)
+        self.classifier.open()  # loaded before the clock starts (on a GPU: graph captures),
+        self.mapper.points.load_models()  # in the order the first frame would load them
         try:
             with self.stop:
                 wall_start, cpu_start = time.perf_counter(), time.thread_time()

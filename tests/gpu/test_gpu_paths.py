@@ -85,7 +85,8 @@ def test_tactile_depth_graph_replays_give_the_eager_depths() -> None:
     graphed = DepthNetPredictor(device="cuda")
     eager = DepthNetPredictor(device="cuda", cuda_graphs=False)
     graphed.load()
-    assert sorted(graphed._forward._graphs) == [1, 2, 4, 8]  # captured when loaded
+    shape = (3, *graphed.input_size)
+    assert graphed._forward.captured() == [(b, shape) for b in (1, 2, 4, 8)]  # when loaded
     for batch in (1, 3, 4):  # 3: padded to the bucket of 4
         got = graphed.predict(images[:batch], backgrounds[:batch])
         want = eager.predict(images[:batch], backgrounds[:batch])
@@ -109,14 +110,21 @@ def test_graph_replays_give_the_eager_outputs_at_every_batch_size() -> None:
     clf = MaterialClassifier(["plastic", "metal", "fabric", "wood"], device="cuda").open()
     graphed = clf._model
     assert isinstance(graphed, GraphedModel)
+    shape = (3, clf._ckpt.input_size, clf._ckpt.input_size)
+    assert graphed.captured() == [(b, shape) for b in BUCKETS]  # every bucket, when opened
     generator = torch.Generator().manual_seed(0)
     with torch.inference_mode():
         for batch in (1, 3, 5, 3, 9, 64):  # padded buckets, a bucket replayed again
-            x = torch.rand(batch, 3, 224, 224, generator=generator).cuda()
+            x = torch.rand(batch, *shape, generator=generator).cuda()
             torch.testing.assert_close(
                 graphed(x), graphed.model(x), rtol=GRAPH_RTOL, atol=GRAPH_ATOL
             )
-    assert sorted(graphed._graphs) == list(BUCKETS)  # every bucket captured when opened
+        assert graphed.captured() == [(b, shape) for b in BUCKETS]  # replays, no new capture
+        other = torch.rand(3, 3, 224, 224, generator=generator).cuda()  # another input size
+        torch.testing.assert_close(
+            graphed(other), graphed.model(other), rtol=GRAPH_RTOL, atol=GRAPH_ATOL
+        )
+    assert (4, (3, 224, 224)) in graphed.captured()  # a graph of its own
 
 
 def test_a_capture_while_another_thread_trains_the_field() -> None:

@@ -141,6 +141,16 @@ def test_net_source_finds_a_simulated_press_and_its_depth() -> None:
     assert np.array_equal(unpressed, source(empty)) and not unpressed.any()
 
 
+def test_load_reads_the_network_only_for_the_net_source() -> None:
+    # A run loads it before its clock starts (pipeline/mapping_session.py), not on a touch.
+    net, gt = TactileDepth(TactileDepthConfig("net")), TactileDepth(TactileDepthConfig("gt"))
+    net.load()
+    gt.load()
+    assert net.net._model is not None and gt.net._model is None
+    # On the CPU the forward runs as it is (graphs are for CUDA devices).
+    assert type(net.net._forward).__name__ == "FullResolution"
+
+
 def test_net_source_without_a_background_is_a_data_error() -> None:
     image = np.zeros((320, 240, 3), np.uint8)
     reading = TactileReading("ring", image, np.eye(4), DIGIT_INTRINSICS)
