@@ -11,7 +11,12 @@ from efficientnet_pytorch import EfficientNet
 
 from neuralfeels_sem.core.errors import DataError
 from neuralfeels_sem.perception.classifier.checkpoint import load_checkpoint, save_checkpoint
-from neuralfeels_sem.perception.classifier.model import HEAD_KEYS, build_model, fold_batch_norms
+from neuralfeels_sem.perception.classifier.model import (
+    HEAD_KEYS,
+    build_model,
+    fold_batch_norms,
+    fold_same_padding,
+)
 from neuralfeels_sem.perception.classifier.transforms import IMAGENET_MEAN, IMAGENET_STD
 
 
@@ -148,3 +153,22 @@ def test_folding_the_batch_norms_keeps_the_predictions() -> None:
     torch.testing.assert_close(after, before, rtol=1e-4, atol=1e-4)
     with pytest.raises(ValueError, match="eval mode"):
         fold_batch_norms(build_model(4).train())
+
+
+def test_folding_symmetric_same_padding_into_the_convolutions_keeps_the_outputs() -> None:
+    from efficientnet_pytorch.utils import Conv2dStaticSamePadding
+
+    torch.manual_seed(0)
+    model = fold_batch_norms(build_model(4).eval())
+    convs = [m for m in model.modules() if isinstance(m, Conv2dStaticSamePadding)]
+    pads = [m.static_padding for m in convs if isinstance(m.static_padding, torch.nn.ZeroPad2d)]
+    x = torch.rand(5, 3, 112, 112).contiguous(memory_format=torch.channels_last)
+    with torch.inference_mode():
+        before = model(x)
+        folded = fold_same_padding(model)
+        after = folded(x)
+    kept = [m for m in convs if isinstance(m.static_padding, torch.nn.ZeroPad2d)]
+    # the stride-1 depthwise convolutions lose their pass, the asymmetric stride-2 ones keep it
+    assert len(kept) < len(pads) and all(max(m.stride) == 2 for m in kept)
+    assert all(m.padding != (0, 0) for m in convs if m not in kept and m.kernel_size != (1, 1))
+    torch.testing.assert_close(after, before, rtol=1e-6, atol=1e-6)

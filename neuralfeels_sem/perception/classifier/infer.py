@@ -23,7 +23,11 @@ from neuralfeels_sem.core.errors import ConfigError, DataError
 from neuralfeels_sem.core.frame import TactileReading
 from neuralfeels_sem.perception.classifier.checkpoint import ClassifierCheckpoint, load_checkpoint
 from neuralfeels_sem.perception.classifier.edge_streak import EdgeStreak
-from neuralfeels_sem.perception.classifier.model import build_model, fold_batch_norms
+from neuralfeels_sem.perception.classifier.model import (
+    build_model,
+    fold_batch_norms,
+    fold_same_padding,
+)
 from neuralfeels_sem.perception.classifier.patches import (
     crop_around,
     crop_contact_share,
@@ -188,7 +192,7 @@ class MaterialClassifier:
                 "set materials to match or train a classifier for these classes"
             )
         self._device = resolve_device(self.device_name)
-        model = fold_batch_norms(ckpt.build(self._device))  # inference only here
+        model = fold_same_padding(fold_batch_norms(ckpt.build(self._device)))  # inference only
         if self.cuda_graphs and self._device.type == "cuda":
             model = GraphedModel(model)
             model.capture((3, ckpt.input_size, ckpt.input_size), self._device)
