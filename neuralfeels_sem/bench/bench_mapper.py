@@ -124,6 +124,7 @@ def _default_run(*overrides: str) -> dict:
         # Shares of the loop each thread was busy: the one near 1 bounds the factor.
         "producer_busy": _busy(metrics, "producer_cpu_s"),
         "mapper_busy": _busy(metrics, "mapper_cpu_s"),
+        "producer_stage_busy": _stage_busy(metrics),
         "process_wall_s": round(process_s, 1),
         "optimizer_steps": metrics["trained_on"]["optimizer_steps"],
         "matching_mean_class_pct": metrics["matching_mean_class_pct"],
@@ -138,6 +139,13 @@ def _default_run(*overrides: str) -> dict:
 def _busy(metrics: dict, key: str) -> float | None:
     share = busy_share(metrics, key)
     return None if share is None else round(share, 3)
+
+
+def _stage_busy(metrics: dict) -> dict[str, float]:
+    """The producer's stages (acquire, classify, perceive) as shares of the loop: which one
+    to speed up where the producer bounds it."""
+    stages, wall_s = metrics.get("producer_stage_cpu_s") or {}, metrics.get("wall_s") or 0.0
+    return {k: round(v / wall_s, 3) for k, v in stages.items()} if wall_s > 0 else {}
 
 
 def _repeated_default_run(repeats: int) -> dict:

@@ -153,6 +153,7 @@ def summary_rows(metrics: dict) -> list[tuple[str, str, str, str]]:
         ("frames / wall time", f"{metrics['frames']} / {metrics['wall_s']:.0f} s", "", ""),
         ("realtime factor", _fmt(metrics.get("realtime_factor"), ".2f"), "", ""),
         ("busy: producer / mapper", _busy(metrics), "", ""),
+        ("producer: acquire/classify/perceive", _stages(metrics), "", ""),
     ]
 
 
@@ -168,6 +169,15 @@ def _busy(metrics: dict) -> str:
     if producer is None or mapper is None:
         return "n/a"
     return f"{_share(producer)} / {_share(mapper)}"
+
+
+def _stages(metrics: dict) -> str:
+    """The producer's CPU time by stage as shares of the loop's wall time."""
+    stages, wall_s = metrics.get("producer_stage_cpu_s") or {}, metrics.get("wall_s") or 0.0
+    if not stages or wall_s <= 0:
+        return "n/a"
+    names = ("acquire", "classify", "perceive")
+    return "/".join(f"{100 * stages.get(n, 0.0) / wall_s:.0f}%" for n in names)
 
 
 def print_summary(metrics: dict, out: Path) -> None:

@@ -35,3 +35,9 @@ def test_the_busy_shares_come_from_the_threads_cpu_time() -> None:
     assert bench_mapper._busy(metrics, "producer_cpu_s") == 0.8
     assert bench_mapper._busy(metrics, "mapper_cpu_s") == 0.782
     assert bench_mapper._busy({"wall_s": 40.0}, "mapper_cpu_s") is None  # an older run
+
+
+def test_the_producer_stage_shares_come_from_its_cpu_time_by_stage() -> None:
+    metrics = {"wall_s": 40.0, "producer_stage_cpu_s": {"acquire": 10.0, "classify": 20.5}}
+    assert bench_mapper._stage_busy(metrics) == {"acquire": 0.25, "classify": 0.512}
+    assert bench_mapper._stage_busy({"wall_s": 40.0}) == {}  # an older run

@@ -2,7 +2,7 @@
 
 from __future__ import annotations
 
-from neuralfeels_sem.viz.run_report import _busy
+from neuralfeels_sem.viz.run_report import _busy, _stages
 
 
 def test_busy_shares_name_the_thread_that_bounds_the_loop() -> None:
@@ -13,3 +13,9 @@ def test_busy_shares_name_the_thread_that_bounds_the_loop() -> None:
 def test_runs_without_thread_times_show_none() -> None:
     assert _busy({"wall_s": 10.0}) == "n/a"  # a metrics.json from before the fields
     assert _busy({"wall_s": 0.0, "producer_cpu_s": 1.0, "mapper_cpu_s": 1.0}) == "n/a"
+
+
+def test_the_producer_stages_as_shares_of_the_loop() -> None:
+    stages = {"acquire": 3.0, "classify": 4.5, "perceive": 1.25}
+    assert _stages({"wall_s": 10.0, "producer_stage_cpu_s": stages}) == "30%/45%/12%"
+    assert _stages({"wall_s": 10.0}) == "n/a"  # a metrics.json from before the field
