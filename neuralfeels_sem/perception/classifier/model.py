@@ -87,8 +87,9 @@ def fold_same_padding(model: nn.Module) -> nn.Module:
     depthwise ones, 12 of EfficientNet-B0's) that padding itself, instead of a zero-pad
     pass that copies its input first. Asymmetric ones (stride 2) keep the pass.
 
-    The same outputs to the bit on the shipped model, its forward about a sixth cheaper
-    on the CPU: a whole-frame zero-pad copy per convolution is gone.
+    The same outputs to the bit on the shipped model; its forward took about 7 % less CPU
+    time on this project's 2-core CPU at batch 4 and 12 (112 px, one thread, median of 12
+    alternated calls, load 0.9): a zero-padded copy of the input per convolution is gone.
     """
     for conv in model.modules():
         if not isinstance(conv, Conv2dStaticSamePadding):
