@@ -15,6 +15,9 @@ each table parameter (2-D or more, at least MIN_PACKED_ROWS rows) the checkpoint
   hash of their values), else their values (float32 exact, float16 compact).
 `auto` (what a mapping run writes) is `exact` while that costs at most EXACT_LIMIT_BYTES,
 else `compact`. Measured on the default run (docs/usage.md, bench_checkpoint.py).
+`compact` also stores the memory's point clouds (keyframe points, touch points, their axes
+and weights) as float16 and the touch points' labels as int8; `decode` gives them back
+their own dtypes.
 """
 
 from __future__ import annotations
@@ -38,6 +41,17 @@ EXACT_LIMIT_BYTES = 40_000_000
 MIN_PACKED_ROWS = 4096
 PACKED_KEY = "packed_tables"
 INIT_KEY = "init_rng_state"
+NARROWED_KEY = "narrowed_memory"  # "part/key" -> the dtype a narrowed list had
+# What `compact` narrows in the memory's state (MapMemory.state_dict) and to which dtype:
+# float16 keeps a point to about 0.06 mm within the 0.1 m of an object, a unit axis or a
+# weight to 1e-3; labels are class indices or -1.
+_NARROWED = {
+    ("keyframes", "points"): torch.float16,
+    ("touches", "points"): torch.float16,
+    ("touches", "axes"): torch.float16,
+    ("touches", "weights"): torch.float16,
+    ("touches", "labels"): torch.int8,
+}
 _SELECTED_KEY = "selected_tables"  # take() -> compress(), never written
 
 
@@ -91,13 +105,50 @@ def compress(taken: dict) -> dict:
     if _SELECTED_KEY not in taken:
         return taken
     rest = {k: v for k, v in taken.items() if k != _SELECTED_KEY}
+    if any(e["storage"] == "compact" for e in taken[_SELECTED_KEY].values()):
+        rest = _narrow_memory(rest)
     return {**rest, PACKED_KEY: {n: _pack(e) for n, e in taken[_SELECTED_KEY].items()}}
+
+
+def _narrow_memory(state: dict) -> dict:
+    """`state` with the memory's lists in _NARROWED in their narrow dtypes (new lists and
+    dicts: the taken copy's own tensors are not changed in place)."""
+    state, widths = dict(state), {}
+    for (part, key), dtype in _NARROWED.items():
+        tensors = (state.get(part) or {}).get(key)
+        if not tensors or not _fits(tensors, dtype):
+            continue
+        widths[f"{part}/{key}"] = str(tensors[0].dtype).removeprefix("torch.")
+        state[part] = {**state[part], key: [t.to(dtype) for t in tensors]}
+    return {**state, NARROWED_KEY: widths}
+
+
+def _fits(tensors: list[Tensor], dtype: torch.dtype) -> bool:
+    """Integers narrow only where every value fits (labels are never rounded)."""
+    if dtype.is_floating_point:
+        return True
+    info = torch.iinfo(dtype)
+    return all(
+        t.numel() == 0 or info.min <= int(t.min()) <= int(t.max()) <= info.max for t in tensors
+    )
+
+
+def _widen_memory(state: dict) -> dict:
+    """The memory's narrowed lists back in the dtypes they were saved from."""
+    widths = state.get(NARROWED_KEY) or {}
+    state = {k: v for k, v in state.items() if k != NARROWED_KEY}
+    for name, dtype in widths.items():
+        part, key = name.split("/")
+        wide = getattr(torch, dtype)
+        state[part] = {**state[part], key: [t.to(wide) for t in state[part][key]]}
+    return state
 
 
 def decode(state: dict, field: nn.Module, source: str) -> dict:
     """The OnlineMapper.state_dict() that `encode` packed (`state` unchanged when nothing
     was); `field` is the one it will load into (built like the saved one); `source` names
     the checkpoint in the warning given when its initial rows do not replay exactly."""
+    state = _widen_memory(state)
     packed = state.get(PACKED_KEY)
     if not packed:
         return state

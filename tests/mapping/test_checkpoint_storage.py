@@ -127,6 +127,41 @@ def test_compact_storage_resumes_close_to_the_uninterrupted_field(tmp_path) -> N
     assert (got - expected).abs().max() < 0.05 * expected.abs().max()
 
 
+def test_compact_storage_narrows_the_memory_and_gives_it_back_its_dtypes(tmp_path) -> None:
+    mapper = replayable_mapper()
+    feed(mapper, FRAMES[:3])
+    memory = mapper.state_dict()
+    narrow = {"exact": torch.float32, "compact": torch.float16}
+    for storage in ("exact", "compact"):
+        path = tmp_path / f"{storage}.pt"
+        save_checkpoint(path, mapper, frame_index=2, storage=storage)
+        saved = torch.load(path, weights_only=True)["mapper"]
+        assert saved["keyframes"]["points"][0].dtype == narrow[storage]
+        assert saved["touches"]["axes"][0].dtype == narrow[storage]
+        wide_labels = saved["touches"]["labels"][0].dtype == torch.int64
+        assert wide_labels == (storage == "exact")  # int8 in compact: every label fits
+        restored = replayable_mapper(init_seed=7)
+        load_checkpoint(path, restored)
+        back = restored.state_dict()
+        for part, key in (("keyframes", "points"), ("touches", "points"), ("touches", "labels")):
+            for got, want in zip(back[part][key], memory[part][key]):
+                assert got.dtype == want.dtype, (storage, part, key)
+                # float16: a point to its rounding (0.06 mm within 0.1 m); labels exactly
+                torch.testing.assert_close(
+                    got, want, rtol=0, atol=1e-4 if want.is_floating_point() else 0
+                )
+
+
+def test_labels_that_do_not_fit_int8_stay_wide() -> None:
+    state = {"touches": {"labels": [torch.tensor([0, 300])], "points": [torch.zeros(1, 3)]}}
+    narrowed = codec._narrow_memory(state)
+    assert narrowed["touches"]["labels"][0].dtype == torch.int64
+    assert narrowed["touches"]["points"][0].dtype == torch.float16
+    assert state["touches"]["points"][0].dtype == torch.float32  # the input is left as it was
+    widened = codec._widen_memory(narrowed)
+    assert widened["touches"]["points"][0].dtype == torch.float32
+
+
 def test_auto_storage_is_exact_while_that_is_small(tmp_path) -> None:
     mapper = replayable_mapper()
     feed(mapper, FRAMES[:2])
