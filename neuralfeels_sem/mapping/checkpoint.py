@@ -27,8 +27,9 @@ from neuralfeels_sem.mapping.provenance import Provenance, differing_settings
 
 # 2 added the provenance; version 1 files still load (task=eval) but cannot be resumed.
 # 3 packs the hash tables (checkpoint_codec.py); versions 1 and 2 hold them whole and load.
-FORMAT_VERSION = 3
-READABLE_VERSIONS = (1, 2, 3)
+# 4: compact storage also narrows the memory's point clouds (older code must not load it).
+FORMAT_VERSION = 4
+READABLE_VERSIONS = (1, 2, 3, 4)
 
 
 def field_signature(mapper: OnlineMapper) -> dict:

@@ -185,6 +185,23 @@ def test_a_version_2_checkpoint_still_loads(tmp_path) -> None:
         assert torch.equal(a, b)
 
 
+def test_a_version_3_compact_checkpoint_still_loads(tmp_path) -> None:
+    mapper = replayable_mapper()
+    feed(mapper, FRAMES[:2])
+    path = tmp_path / "checkpoint.pt"
+    save_checkpoint(path, mapper, frame_index=1, storage="compact")
+    payload = torch.load(path, weights_only=True)
+    # as version 3 wrote it: the tables packed, the memory in its own dtypes
+    memory = codec._widen_memory(payload["mapper"])
+    payload.update(version=3, mapper=memory)
+    torch.save(payload, path)
+    restored = replayable_mapper(init_seed=7)
+    assert load_checkpoint(path, restored)["frame_index"] == 1
+    points = mapper.state_dict()["keyframes"]["points"]
+    for got, want in zip(restored.state_dict()["keyframes"]["points"], points):
+        torch.testing.assert_close(got, want, rtol=0, atol=1e-4)
+
+
 def test_initial_rows_that_no_longer_replay_are_named(tmp_path) -> None:
     mapper = replayable_mapper()
     feed(mapper, FRAMES[:2])
