@@ -41,13 +41,19 @@ def test_a_checkpoint_written_behind_holds_the_state_it_was_taken_with(
     resumed = make_mapper(init_seed=7)
     assert load_checkpoint(path, resumed) == {"frame_index": 2, "extra": {"note": [1]}}
     feed(resumed, FRAMES[3:])
-    for (name, a), (_, b) in zip(
-        reference.field.state_dict().items(), resumed.field.state_dict().items()
-    ):
-        if storage == "exact":
+    if storage == "exact":
+        for (name, a), (_, b) in zip(
+            reference.field.state_dict().items(), resumed.field.state_dict().items()
+        ):
             assert torch.equal(a, b), name
-        else:  # compact moments are 8-bit codes: close, not equal
-            assert torch.allclose(a, b, atol=1e-3), name
+    else:
+        # Compact is lossy (float16 table and memory, 8-bit moment codes): training on from
+        # it moves single rows, so the field is compared where it is read, as in
+        # tests/mapping/test_checkpoint_storage.py (seen: 2 % of the SDF's range here).
+        points = torch.rand(2048, 3, generator=torch.Generator().manual_seed(0)) * 0.16 - 0.08
+        with torch.no_grad():
+            expected, got = reference.field.sdf(points), resumed.field.sdf(points)
+        assert (got - expected).abs().max() < 0.05 * expected.abs().max()
     assert reference.trained_on == resumed.trained_on
 
 
