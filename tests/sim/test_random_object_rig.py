@@ -1,6 +1,7 @@
 """A generated development object (object=random object.seed=4) works in the simulated rig.
 
-The default 10 s motion (seed 0) touches both of its materials and the scene steps cleanly.
+The default motion's first 10 s (seed 0) touch both of its materials and the scene steps
+cleanly.
 The rig alone, no rendering: about 3 s.
 """
 

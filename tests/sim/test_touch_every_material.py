@@ -1,9 +1,9 @@
 """The rig's fingers reach every material of the objects without a majority material.
 
 patchwork and kitchen_tool place their materials where the fingers reach as the default
-sensor=sim motion turns the object (5 s about z, then 5 s about y): in a default 10 s run
-(100 frames, seed 0) each material is under a touching finger's contact point in several
-frames. The rig alone, no rendering: about 3 s per object.
+sensor=sim motion turns the object (5 s about z, then 5 s about y): in the motion's first
+10 s (100 frames, seed 0) each material is under a touching finger's contact point in
+several frames. The rig alone, no rendering: about 3 s per object.
 """
 
 from __future__ import annotations
