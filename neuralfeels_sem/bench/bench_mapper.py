@@ -41,7 +41,7 @@ from neuralfeels_sem.mapping.mapper import MapperConfig, OnlineMapper
 from neuralfeels_sem.mapping.sphere_scene import sphere_frames
 from neuralfeels_sem.utils.device import resolve_device, resolve_threads
 from neuralfeels_sem.utils.paths import REPO_DIR
-from neuralfeels_sem.viz.run_report import busy_share
+from neuralfeels_sem.viz.run_report import busy_share, stage_shares
 
 TIMED_STEPS = 20
 DEFAULT_RUN_TIMEOUT_S = 900
@@ -142,10 +142,9 @@ def _busy(metrics: dict, key: str) -> float | None:
 
 
 def _stage_busy(metrics: dict) -> dict[str, float]:
-    """The producer's stages (acquire, classify, perceive) as shares of the loop: which one
-    to speed up where the producer bounds it."""
-    stages, wall_s = metrics.get("producer_stage_cpu_s") or {}, metrics.get("wall_s") or 0.0
-    return {k: round(v / wall_s, 3) for k, v in stages.items()} if wall_s > 0 else {}
+    """The producer's stages as shares of the loop: which one to speed up where the
+    producer bounds it."""
+    return {stage: round(share, 3) for stage, share in stage_shares(metrics).items()}
 
 
 def _repeated_default_run(repeats: int) -> dict:

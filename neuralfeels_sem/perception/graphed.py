@@ -3,9 +3,11 @@
 EfficientNet-B0's forward (the material classifier) is a few hundred small kernels, each
 launched from Python. On an H100 (a default run's profile, issue 22) a call cost 68 ms of
 CPU, more than the same forward on that machine's CPU (37 ms), and the frame producer spent
-about half its time there; the tactile depth network's forward and its bilinear upsampling
-(a decomposition run op by op in Python) cost the producer more CPU than its GPU work. A
-CUDA graph records the launches once and replays them with one call. Batches are padded up
+about half its time there. The tactile depth network's forward and its bilinear
+upsampling (a decomposition run op by op in Python) are launched the same way: replayed
+from graphs, the producer's perceive stage took 22 ms of CPU a frame instead of 32 (the
+2^24 default run on an H200). A CUDA graph records the launches once and replays them with
+one call. Batches are padded up
 to the next bucket, so a handful of graphs serve every batch size: in inference, with batch
 norms in eval mode (or folded), a sample's output does not depend on the others in its
 batch.
@@ -72,8 +74,9 @@ class GraphedModel:
         """Capture every bucket's graph now, for float32 samples of `sample_shape`.
 
         A bucket's first capture costs far more than its replays (the first calls of each
-        convolution shape: in a default run on an H200 the first frame waited about 13 s for
-        the classifier's), so a run captures them before its clock starts.
+        convolution shape): in a default run on an H200 that captured them on first use, the
+        first frame, which also loaded the networks, took 13-17 s. A run captures them
+        before its clock starts.
         """
         like = torch.zeros((1, *sample_shape), device=device)
         for size in self.buckets:
@@ -106,8 +109,8 @@ class GraphedModel:
             log.warning("%s: CUDA graph capture failed (%s); running it eagerly", name, exc)
             self._eager = True
             return None
-        self._graphs[_key(size, like)] = (graph, static_in, static_out)
-        return self._graphs[_key(size, like)]
+        entry = self._graphs[_key(size, like)] = (graph, static_in, static_out)
+        return entry
 
 
 def _key(size: int, x: Tensor) -> tuple:

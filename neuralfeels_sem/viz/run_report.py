@@ -171,13 +171,19 @@ def _busy(metrics: dict) -> str:
     return f"{_share(producer)} / {_share(mapper)}"
 
 
-def _stages(metrics: dict) -> str:
-    """The producer's CPU time by stage as shares of the loop's wall time."""
+def stage_shares(metrics: dict) -> dict[str, float]:
+    """The producer's CPU time by stage (`producer_stage_cpu_s`: acquire, classify,
+    perceive) as shares of the loop's wall time; empty for a run without it."""
     stages, wall_s = metrics.get("producer_stage_cpu_s") or {}, metrics.get("wall_s") or 0.0
-    if not stages or wall_s <= 0:
+    return {stage: cpu_s / wall_s for stage, cpu_s in stages.items()} if wall_s > 0 else {}
+
+
+def _stages(metrics: dict) -> str:
+    shares = stage_shares(metrics)
+    if not shares:
         return "n/a"
     names = ("acquire", "classify", "perceive")
-    return "/".join(f"{100 * stages.get(n, 0.0) / wall_s:.0f}%" for n in names)
+    return "/".join(f"{100 * shares.get(n, 0.0):.0f}%" for n in names)
 
 
 def print_summary(metrics: dict, out: Path) -> None:
