@@ -114,16 +114,23 @@ def _neighbour_counts(
     """
     near = distances < radius
     near.fill_diagonal_(False)
-    agreeing = near & (labels[None, :] == labels[:, None])
     if events is None:
+        agreeing = near & (labels[None, :] == labels[:, None])
         return near.sum(1), agreeing.sum(1)
-    near &= events[None, :] != events[:, None]
-    agreeing &= near
-    # (T, K) one-hot press membership: count the presses a touch sees, not their frames.
-    _, press = torch.unique(events, return_inverse=True)
-    members = torch.nn.functional.one_hot(press).to(distances.dtype)
-    neighbours = ((near.to(distances.dtype) @ members) > 0).sum(1)
-    return neighbours, ((agreeing.to(distances.dtype) @ members) > 0).sum(1)
+    # Count distinct presses over the near pairs only: neighbours are few, and a dense
+    # (T, T) @ (T, presses) count grew with the square of the run's touches.
+    i, j = near.nonzero(as_tuple=True)
+    other = events[i] != events[j]
+    i, j = i[other], j[other]
+    agree = labels[i] == labels[j]
+    return _presses_seen(i, j, events), _presses_seen(i[agree], j[agree], events)
+
+
+def _presses_seen(i: torch.Tensor, j: torch.Tensor, events: torch.Tensor) -> torch.Tensor:
+    """(T,) per touch, the distinct presses among its partners j of the pairs (i, j)."""
+    presses = int(events.max()) + 1 if len(events) else 1
+    pairs = torch.unique(i * presses + events[j])  # one per (touch, press)
+    return torch.bincount(pairs // presses, minlength=len(events))
 
 
 def outvoted_touches(

@@ -68,6 +68,11 @@ class TouchBuffer:
         # press keeps its frames together when realtime pacing maps every other frame.
         self._mapped: list[int] = []
         self._cat: dict[str, torch.Tensor] | None = None
+        # The per-touch lists concatenated (`_joined`) are valid for the first `_joined_upto`
+        # touches: a new touch appends, and only a changed touch re-joins from itself on.
+        self._joined: dict[str, torch.Tensor] = {}
+        self._joined_upto = 0
+        self._starts: list[int] = [0]  # each touch's first row in the joined tensors
         self.num_touches = 0
         self.num_labelled = 0
         self.num_fused = 0  # of num_labelled: labelled by press fusion
@@ -119,6 +124,7 @@ class TouchBuffer:
         self._at_edge.append(bool(at_edge))
         self.note_frame(frame_index)
         self._points.append(points)
+        self._starts.append(self._starts[-1] + n)
         self._axes.append(axis.reshape(1, 3).expand(n, 3).clone())
         self._labels.append(labels)
         self._weights.append(weights)
@@ -164,26 +170,13 @@ class TouchBuffer:
         self._add_items(touch, self._points[touch], self._labels[touch])
         self.num_labelled += 1
         self.num_fused += 1
+        self._joined_upto = min(self._joined_upto, touch)
         self._cat = None
 
     def tensors(self) -> dict[str, torch.Tensor]:
         """All touches concatenated: points, axes, labels, weights, and the labelled subset."""
         if self._cat is None:
-            if self._points:
-                cat = {
-                    "points": torch.cat(self._points),
-                    "axes": torch.cat(self._axes),
-                    "labels": torch.cat(self._labels),
-                    "weights": torch.cat(self._weights),
-                }
-            else:
-                empty3 = torch.zeros(0, 3, device=self.device)
-                cat = {
-                    "points": empty3,
-                    "axes": empty3,
-                    "labels": torch.zeros(0, dtype=torch.long, device=self.device),
-                    "weights": torch.zeros(0, device=self.device),
-                }
+            cat = dict(self._joined_lists())
             labelled = cat["labels"] >= 0
             self._num_outvoted = 0
             if self.vote is not None and self.vote.active and self.num_labelled > 0:
@@ -193,6 +186,30 @@ class TouchBuffer:
             cat["labelled_weights"] = cat["weights"][labelled]
             self._cat = cat
         return self._cat
+
+    def _joined_lists(self) -> dict[str, torch.Tensor]:
+        """Points, axes, labels and weights of every touch, each list as one tensor; only
+        the touches past `_joined_upto` are joined anew (the same tensors as joining all)."""
+        lists = {
+            "points": self._points, "axes": self._axes,
+            "labels": self._labels, "weights": self._weights,
+        }  # fmt: skip
+        if not self._points:
+            empty3 = torch.zeros(0, 3, device=self.device)
+            return {
+                "points": empty3,
+                "axes": empty3,
+                "labels": torch.zeros(0, dtype=torch.long, device=self.device),
+                "weights": torch.zeros(0, device=self.device),
+            }
+        upto, row = self._joined_upto, self._starts[self._joined_upto]
+        if upto < len(self._points):
+            self._joined = {
+                key: torch.cat(([self._joined[key][:row]] if upto else []) + items[upto:])
+                for key, items in lists.items()
+            }
+            self._joined_upto = len(self._points)
+        return self._joined
 
     def move_frame(self, frame_index: int, rotation: torch.Tensor, shift: torch.Tensor) -> int:
         """Re-place the touches of one frame (x -> rotation x + shift, object frame: its
@@ -205,13 +222,14 @@ class TouchBuffer:
             if touch in moved:
                 self._item_centroid[item] = rotation @ self._item_centroid[item] + shift
         if moved:
+            self._joined_upto = min(self._joined_upto, moved[0])
             self._cat = None
         return len(moved)
 
     def _outvoted_points(self) -> torch.Tensor:
         """Per stored point: is its label left out (its touch's reading of that material
         outvoted, or named by too few of the touch's points to count as read)?"""
-        labels = torch.cat(self._labels)
+        labels = self._joined_lists()["labels"]
         used, self._num_outvoted = self._used_flat(labels, self._touch_of_point(labels.device))
         return (labels >= 0) & (used < 0)
 
@@ -353,4 +371,8 @@ class TouchBuffer:
         self.num_touches = int(state["num_touches"])
         self.num_labelled = int(state["num_labelled"])
         self.num_fused = int(state.get("num_fused", 0))
+        self._starts = [0]
+        for points in self._points:
+            self._starts.append(self._starts[-1] + len(points))
+        self._joined_upto = 0
         self._cat = None

@@ -8,6 +8,7 @@ import torch
 from neuralfeels_sem.mapping.keyframes import KeyframeBuffer
 from neuralfeels_sem.mapping.label_vote import (
     LabelVote,
+    _neighbour_counts,
     outvoted_touches,
     press_events,
     steady_presses,
@@ -266,3 +267,50 @@ def test_presses_count_mapped_frames_when_realtime_pacing_skips_some() -> None:
     older = {k: v for k, v in state.items() if k != "mapped_frames"}
     restored.load_state_dict(older)
     assert restored.num_outvoted == 4  # frames 16 and 25 are ranks 2 and 3: one press
+
+
+def test_neighbour_counts_over_pairs_equal_the_dense_press_count() -> None:
+    """The count over near pairs gives what counting a (T, T) @ (T, presses) membership
+    product gives: distinct other presses within the radius, and those agreeing."""
+    gen = torch.Generator().manual_seed(3)
+    centroids = torch.rand(300, 3, generator=gen) * 0.05
+    labels = torch.randint(0, 3, (300,), generator=gen)
+    events = torch.sort(torch.randint(0, 90, (300,), generator=gen)).values
+    distances = torch.cdist(centroids, centroids)
+    near = (distances < 0.01).fill_diagonal_(False) & (events[None, :] != events[:, None])
+    agreeing = near & (labels[None, :] == labels[:, None])
+    members = torch.nn.functional.one_hot(torch.unique(events, return_inverse=True)[1]).float()
+    dense = [((m.float() @ members) > 0).sum(1) for m in (near, agreeing)]
+    sparse = _neighbour_counts(distances.clone(), labels, 0.01, events)
+    assert dense[0].sum() > 300  # the radius leaves several presses near most touches
+    assert torch.equal(sparse[0], dense[0]) and torch.equal(sparse[1], dense[1])
+
+
+def test_touch_tensors_joined_as_touches_come_equal_joining_them_all() -> None:
+    """New touches append to the joined tensors; a relabelled or moved touch re-joins from
+    itself on: at every point the tensors equal the per-touch lists concatenated whole."""
+    gen = torch.Generator().manual_seed(5)
+    buf = TouchBuffer(CPU)
+
+    def check() -> None:
+        got = buf.tensors()
+        for key, items in (("points", buf._points), ("axes", buf._axes),
+                           ("labels", buf._labels), ("weights", buf._weights)):  # fmt: skip
+            assert torch.equal(got[key], torch.cat(items)), key
+
+    for frame in range(6):
+        label = -1 if frame in (1, 4) else frame % 3
+        buf.add(torch.rand(8, 3, generator=gen), torch.tensor([0.0, 0.0, 1.0]), label, 1.0,
+                finger="index", frame_index=frame)  # fmt: skip
+        check()
+    buf._relabel(1, 2, 0.5)  # what press fusion does to an abstained touch
+    check()
+    assert buf.tensors()["labels"][8:16].tolist() == [2] * 8
+    buf.move_frame(4, torch.eye(3), torch.tensor([0.01, 0.0, 0.0]))
+    check()
+    buf.add(torch.rand(8, 3, generator=gen), torch.tensor([0.0, 0.0, 1.0]), 0, 1.0,
+            finger="index", frame_index=6)  # fmt: skip
+    check()
+    restored = TouchBuffer(CPU)
+    restored.load_state_dict(buf.state_dict())
+    assert torch.equal(restored.tensors()["points"], buf.tensors()["points"])

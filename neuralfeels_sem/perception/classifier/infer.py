@@ -23,11 +23,7 @@ from neuralfeels_sem.core.errors import ConfigError, DataError
 from neuralfeels_sem.core.frame import TactileReading
 from neuralfeels_sem.perception.classifier.checkpoint import ClassifierCheckpoint, load_checkpoint
 from neuralfeels_sem.perception.classifier.edge_streak import EdgeStreak
-from neuralfeels_sem.perception.classifier.model import (
-    build_model,
-    fold_batch_norms,
-    fold_same_padding,
-)
+from neuralfeels_sem.perception.classifier.model import build_model, inference_model
 from neuralfeels_sem.perception.classifier.patches import (
     crop_around,
     crop_contact_share,
@@ -37,7 +33,6 @@ from neuralfeels_sem.perception.classifier.patches import (
 from neuralfeels_sem.perception.classifier.predict import predict_probs
 from neuralfeels_sem.perception.classifier.transforms import preprocess, resize_batch
 from neuralfeels_sem.perception.contact import ContactGate, edge_share
-from neuralfeels_sem.perception.graphed import GraphedModel
 from neuralfeels_sem.perception.touch import NO_LABEL, TouchLabel
 from neuralfeels_sem.utils.device import resolve_device
 from neuralfeels_sem.utils.paths import ASSETS_DIR
@@ -192,11 +187,9 @@ class MaterialClassifier:
                 "set materials to match or train a classifier for these classes"
             )
         self._device = resolve_device(self.device_name)
-        model = fold_same_padding(fold_batch_norms(ckpt.build(self._device)))  # inference only
-        if self.cuda_graphs and self._device.type == "cuda":
-            model = GraphedModel(model)
-            model.capture((3, ckpt.input_size, ckpt.input_size), self._device)
-        self._model = model
+        self._model = inference_model(
+            ckpt.build(self._device), ckpt.input_size, self._device, self.cuda_graphs
+        )
         self._ckpt = ckpt
         if self.background_dir is not None:
             self._load_backgrounds()

@@ -21,7 +21,9 @@ def predict_probs(
     batch_size: int = 64,
 ) -> np.ndarray:
     """(N, S, S, 3) uint8, already at the model's input size -> (N, C) float32 probabilities."""
-    if model.training:  # eval() walks every submodule: skip it for a model already in eval mode
+    # eval() walks every submodule: skip it for a model already in eval mode (a frozen
+    # TorchScript model, model.trace_for_cpu, has no `training` flag at all)
+    if getattr(model, "training", False):
         model.eval()
     out = []
     for start in range(0, len(images), batch_size):
