@@ -16,6 +16,7 @@ from neuralfeels_sem.perception.classifier.model import (
     build_model,
     fold_batch_norms,
     fold_same_padding,
+    trace_for_cpu,
 )
 from neuralfeels_sem.perception.classifier.transforms import IMAGENET_MEAN, IMAGENET_STD
 
@@ -172,3 +173,22 @@ def test_folding_symmetric_same_padding_into_the_convolutions_keeps_the_outputs(
     assert len(kept) < len(pads) and all(max(m.stride) == 2 for m in kept)
     assert all(m.padding != (0, 0) for m in convs if m not in kept and m.kernel_size != (1, 1))
     torch.testing.assert_close(after, before, rtol=1e-6, atol=1e-6)
+
+
+def test_the_traced_cpu_model_gives_the_eager_outputs_at_any_batch(monkeypatch) -> None:
+    torch.manual_seed(0)
+    model = fold_same_padding(fold_batch_norms(build_model(4).eval()))
+    traced = trace_for_cpu(model, 112)
+    assert isinstance(traced, torch.jit.ScriptModule)
+    x = torch.rand(5, 3, 112, 112).contiguous(memory_format=torch.channels_last)
+    with torch.inference_mode():
+        for batch in (1, 2, 5):  # traced at batch 1
+            assert torch.equal(traced(x[:batch]), model(x[:batch]))
+    with pytest.raises(ValueError, match="eval mode"):
+        trace_for_cpu(build_model(4).train(), 112)
+
+    def no_tracing(*args, **kwargs):
+        raise RuntimeError("tracing is gone")
+
+    monkeypatch.setattr(torch.jit, "trace", no_tracing)
+    assert trace_for_cpu(model, 112) is model  # the eager model, as before
