@@ -128,9 +128,10 @@ def _neighbour_counts(
 
 def _presses_seen(i: torch.Tensor, j: torch.Tensor, events: torch.Tensor) -> torch.Tensor:
     """(T,) per touch, the distinct presses among its partners j of the pairs (i, j)."""
-    presses = int(events.max()) + 1 if len(events) else 1
-    pairs = torch.unique(i * presses + events[j])  # one per (touch, press)
-    return torch.bincount(pairs // presses, minlength=len(events))
+    _, press = torch.unique(events, return_inverse=True)
+    seen = torch.zeros(len(events), int(press.max()) + 1, dtype=torch.bool, device=i.device)
+    seen[i, press[j]] = True  # (touch, press) pairs: a press's many frames mark one cell
+    return seen.sum(1)
 
 
 def outvoted_touches(

@@ -85,6 +85,9 @@ class MapperConfig:
     space_prior_points: int = 512  # 0 = off
     space_prior_weight: float = 0.5
     space_prior_resolution: int = 64  # carving voxels per side
+    # Frames between rebuilds of the hull of observed points (and the tree the prior's
+    # samples keep clear of them with): each rebuild costs ~25 ms of the mapper's CPU.
+    space_prior_hull_every: int = 1
     material_weight: float = 0.1
     # A labelled touch contradicted by its neighbours (>= min_neighbours labelled touches
     # within radius metres, fewer than min_agreement of them with its label) is not used
@@ -168,7 +171,7 @@ class MapperConfig:
             "camera_points_per_frame": 1, "tactile_points_per_touch": 1,
             "camera_rays": 0, "tactile_rays": 0, "band_samples": 0, "free_samples": 0,
             "material_points": 0, "eikonal_points": 0, "space_prior_points": 0,
-            "space_prior_resolution": 8, "window_recent": 1, "window_by_loss": 0,
+            "space_prior_resolution": 8, "space_prior_hull_every": 1, "window_recent": 1, "window_by_loss": 0,
             "max_keyframes": 1, "label_vote_min_neighbours": 1, "label_vote_min_support": 0,
             "label_vote_press_gap": 0, "label_vote_steady_frames": 0,
         }  # fmt: skip

@@ -45,6 +45,7 @@ class MapMemory:
         self.camera_points_per_frame = config.camera_points_per_frame
         self.tactile_points_per_touch = config.tactile_points_per_touch
         self.truncation = float(config.truncation)
+        self.hull_every = config.space_prior_hull_every
         self.generator = generator  # the mapper's: subsets are repeatable and resumable
         self.device = device
         self.keyframes = KeyframeBuffer(
@@ -85,7 +86,9 @@ class MapMemory:
             else:
                 label = touch_labels.get(source)
                 kept["tactile"] += self._add_touch(frame, source, pts, world_T_object, label)
-        if self.space_prior is not None:
+        if self.space_prior is not None and (
+            frame.index % self.hull_every == 0 or not self.space_prior.ready
+        ):
             self.space_prior.update_hull()
         return kept["camera"], kept["tactile"]
 

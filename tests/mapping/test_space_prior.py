@@ -147,3 +147,25 @@ def test_labels_equal_the_facet_inequalities_on_random_points() -> None:
     labels = prior.label(points)
     assert {OUTSIDE, SOLID} <= set(labels.tolist())
     np.testing.assert_array_equal(labels, np.where(outside, OUTSIDE, SOLID))
+
+
+def test_the_mapper_rebuilds_the_hull_every_hull_every_frames(monkeypatch) -> None:
+    """space_prior_hull_every=3: the hull is rebuilt on frames 0, 3, 6 (and whenever there
+    is none yet), the reservoir still growing on every frame."""
+    from neuralfeels_sem.mapping.space_prior import SpaceCarvingPrior
+    from tests.mapping.synthetic import small_mapper, sphere_frames
+
+    rebuilt = []
+    update = SpaceCarvingPrior.update_hull
+    monkeypatch.setattr(
+        SpaceCarvingPrior,
+        "update_hull",
+        lambda self: rebuilt.append(self.points_seen) or update(self),
+    )
+    mapper = small_mapper(space_prior_hull_every=3, steps_per_frame=1, warmup_steps=1)
+    for frame, labels in sphere_frames(8, touches_per_frame=1):
+        mapper.add_frame(frame, labels)
+    seen = mapper.memory.space_prior.points_seen
+    assert len(rebuilt) == 3 and rebuilt == sorted(set(rebuilt)) and rebuilt[-1] < seen
+    with pytest.raises(ValueError, match="space_prior_hull_every"):
+        small_mapper(space_prior_hull_every=0)
