@@ -86,8 +86,10 @@ class MapperConfig:
     space_prior_weight: float = 0.5
     space_prior_resolution: int = 64  # carving voxels per side
     # Frames between rebuilds of the hull of observed points (and the tree the prior's
-    # samples keep clear of them with): each rebuild costs ~25 ms of the mapper's CPU.
-    space_prior_hull_every: int = 1
+    # samples keep clear of them with), ~25 ms of the mapper's CPU each: every 5th frame
+    # mapped the shipped objects as every frame did, within 0.5 points on each of 16
+    # 30 s runs (docs/field_and_mapper.md#where-a-default-runs-time-goes).
+    space_prior_hull_every: int = 5
     material_weight: float = 0.1
     # A labelled touch contradicted by its neighbours (>= min_neighbours labelled touches
     # within radius metres, fewer than min_agreement of them with its label) is not used
