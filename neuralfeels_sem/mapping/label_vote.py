@@ -105,33 +105,29 @@ def steady_presses(
     return (naming >= min_frames) & (2 * naming >= frames_per_press[events])
 
 
-def _neighbour_counts(
-    distances: torch.Tensor, labels: torch.Tensor, radius: float, events: torch.Tensor | None
+def _nearest_per_press(
+    distances: torch.Tensor, labels: torch.Tensor, events: torch.Tensor
 ) -> tuple[torch.Tensor, torch.Tensor]:
-    """(T,) other touches (presses, with `events`) within `radius`, and those that agree.
+    """(T, K) per touch and press: the distance to the press's nearest touch, and to its
+    nearest touch with the same label (inf for the touch's own press, and where none).
 
-    `distances` (T, T) between the touches' centroids.
+    A press lies within r of a touch exactly when its nearest touch does, so one pass
+    serves every radius; this costs O(T^2), where counting distinct presses over a
+    (T, T) @ (T, presses) product grew with T^2 times the presses.
     """
-    near = distances < radius
-    near.fill_diagonal_(False)
-    if events is None:
-        agreeing = near & (labels[None, :] == labels[:, None])
-        return near.sum(1), agreeing.sum(1)
-    # Count distinct presses over the near pairs only: neighbours are few, and a dense
-    # (T, T) @ (T, presses) count grew with the square of the run's touches.
-    i, j = near.nonzero(as_tuple=True)
-    other = events[i] != events[j]
-    i, j = i[other], j[other]
-    agree = labels[i] == labels[j]
-    return _presses_seen(i, j, events), _presses_seen(i[agree], j[agree], events)
-
-
-def _presses_seen(i: torch.Tensor, j: torch.Tensor, events: torch.Tensor) -> torch.Tensor:
-    """(T,) per touch, the distinct presses among its partners j of the pairs (i, j)."""
     _, press = torch.unique(events, return_inverse=True)
-    seen = torch.zeros(len(events), int(press.max()) + 1, dtype=torch.bool, device=i.device)
-    seen[i, press[j]] = True  # (touch, press) pairs: a press's many frames mark one cell
-    return seen.sum(1)
+    own = press[:, None] == press[None, :]
+    inf = torch.tensor(float("inf"), dtype=distances.dtype, device=distances.device)
+    nearest = distances.masked_fill(own, inf)
+    agreeing = nearest.masked_fill(labels[:, None] != labels[None, :], inf)
+    columns = press.expand_as(distances)
+    shape = (len(press), int(press.max()) + 1)
+    return tuple(  # type: ignore[return-value]
+        torch.full(shape, inf, dtype=distances.dtype, device=distances.device).scatter_reduce(
+            1, columns, d, "amin"
+        )
+        for d in (nearest, agreeing)
+    )
 
 
 def outvoted_touches(
@@ -168,13 +164,13 @@ def outvoted_touches(
         return torch.zeros(len(labels), dtype=torch.bool, device=labels.device)
     if events is not None and events.shape != labels.shape:
         raise ValueError(f"expected (T,) events for {len(labels)} touches, got {events.shape}")
-    distances = torch.cdist(centroids, centroids)
-    neighbours, agree = _neighbour_counts(distances, labels, radius, events)
+    events = torch.arange(len(labels), device=labels.device) if events is None else events
+    nearest, agreeing = _nearest_per_press(torch.cdist(centroids, centroids), labels, events)
+    neighbours, agree = (nearest < radius).sum(1), (agreeing < radius).sum(1)
     outvoted = (neighbours >= min_neighbours) & (agree < min_agreement * neighbours)
     if min_support > 0:
-        if support_radius is not None and support_radius != radius:
-            _, agree = _neighbour_counts(distances, labels, support_radius, events)
-        unsupported = agree < min_support
+        support = radius if support_radius is None else support_radius
+        unsupported = (agreeing < support).sum(1) < min_support
         outvoted |= unsupported if steady is None else unsupported & ~steady
     return outvoted
 

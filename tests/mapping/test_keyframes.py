@@ -8,7 +8,7 @@ import torch
 from neuralfeels_sem.mapping.keyframes import KeyframeBuffer
 from neuralfeels_sem.mapping.label_vote import (
     LabelVote,
-    _neighbour_counts,
+    _nearest_per_press,
     outvoted_touches,
     press_events,
     steady_presses,
@@ -269,21 +269,24 @@ def test_presses_count_mapped_frames_when_realtime_pacing_skips_some() -> None:
     assert restored.num_outvoted == 4  # frames 16 and 25 are ranks 2 and 3: one press
 
 
-def test_neighbour_counts_over_pairs_equal_the_dense_press_count() -> None:
-    """The count over near pairs gives what counting a (T, T) @ (T, presses) membership
-    product gives: distinct other presses within the radius, and those agreeing."""
+def test_presses_within_a_radius_from_their_nearest_touch_equal_the_dense_count() -> None:
+    """Presses within r of a touch, counted from each press's nearest touch, equal those a
+    (T, T) @ (T, presses) membership product counts: other presses within the radius, and
+    those agreeing, at two radii."""
     gen = torch.Generator().manual_seed(3)
     centroids = torch.rand(300, 3, generator=gen) * 0.05
     labels = torch.randint(0, 3, (300,), generator=gen)
     events = torch.sort(torch.randint(0, 90, (300,), generator=gen)).values
     distances = torch.cdist(centroids, centroids)
-    near = (distances < 0.01).fill_diagonal_(False) & (events[None, :] != events[:, None])
-    agreeing = near & (labels[None, :] == labels[:, None])
+    nearest, agreeing = _nearest_per_press(distances, labels, events)
     members = torch.nn.functional.one_hot(torch.unique(events, return_inverse=True)[1]).float()
-    dense = [((m.float() @ members) > 0).sum(1) for m in (near, agreeing)]
-    sparse = _neighbour_counts(distances.clone(), labels, 0.01, events)
-    assert dense[0].sum() > 300  # the radius leaves several presses near most touches
-    assert torch.equal(sparse[0], dense[0]) and torch.equal(sparse[1], dense[1])
+    for radius in (0.005, 0.02):
+        near = (distances < radius) & (events[None, :] != events[:, None])
+        agree = near & (labels[None, :] == labels[:, None])
+        dense = [((m.float() @ members) > 0).sum(1) for m in (near, agree)]
+        assert dense[0].sum() > 300  # several presses near most touches
+        assert torch.equal((nearest < radius).sum(1), dense[0])
+        assert torch.equal((agreeing < radius).sum(1), dense[1])
 
 
 def test_touch_tensors_joined_as_touches_come_equal_joining_them_all() -> None:
