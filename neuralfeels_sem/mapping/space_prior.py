@@ -63,6 +63,7 @@ class SpaceCarvingPrior:
         self.points_seen = 0
         self.facets: np.ndarray | None = None  # (F, 4): n . x + d <= 0 inside
         self._tree: cKDTree | None = None
+        self._hull_source = self.hull_points  # the points the hull was last built from
         self._rng = np.random.default_rng(seed)
 
     # ------------------------------------------------------------------ updates
@@ -113,14 +114,19 @@ class SpaceCarvingPrior:
 
     def update_hull(self) -> None:
         """Recompute the convex hull of the reservoir (no hull while it is degenerate)."""
-        self.facets, self._tree = None, None
-        if len(self.hull_points) < 4:
+        self._build_hull(self.hull_points.copy())
+
+    def _build_hull(self, source: np.ndarray) -> None:
+        """Hull and search tree of `source`, kept as the points they were built from: the
+        reservoir moves on between rebuilds, and a resumed run rebuilds from these."""
+        self.facets, self._tree, self._hull_source = None, None, source
+        if len(source) < 4:
             return
         try:
-            self.facets = ConvexHull(self.hull_points.astype(np.float64)).equations
+            self.facets = ConvexHull(source.astype(np.float64)).equations
         except QhullError:  # all points on a plane or a line: no volume yet
             return
-        self._tree = cKDTree(self.hull_points)
+        self._tree = cKDTree(source)
 
     # ------------------------------------------------------------------ queries
     @property
@@ -169,6 +175,7 @@ class SpaceCarvingPrior:
             "hull_points": torch.from_numpy(self.hull_points.copy()),
             "points_seen": self.points_seen,
             "rng": self._rng.bit_generator.state,
+            "hull_source": torch.from_numpy(self._hull_source.copy()),
         }
 
     def load_state_dict(self, state: dict) -> None:
@@ -177,7 +184,9 @@ class SpaceCarvingPrior:
         self.hull_points = state["hull_points"].numpy().astype(np.float32)
         self.points_seen = int(state["points_seen"])
         self._rng.bit_generator.state = state["rng"]
-        self.update_hull()
+        # Checkpoints from before the hull was rebuilt every few frames: the reservoir.
+        source = state.get("hull_source")
+        self._build_hull(self.hull_points.copy() if source is None else source.numpy().copy())
 
 
 @njit(cache=True, nogil=True)
