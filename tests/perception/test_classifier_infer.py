@@ -176,3 +176,25 @@ def test_edge_share_counts_border_pixels() -> None:
     mask[:] = False
     mask[100:200, 100:140] = True
     assert edge_share(mask, 16) == 0.0
+
+
+def test_classifiers_of_one_checkpoint_file_share_its_traced_cpu_model(
+    untrained_checkpoint: Path, tmp_path: Path
+) -> None:
+    """Tracing takes seconds: a second classifier of the same unchanged file in the process
+    takes the first's model; a copy elsewhere, or the file rewritten, gets its own."""
+    import os
+    import shutil
+
+    first, second = (
+        MaterialClassifier(CLASSES, checkpoint=str(untrained_checkpoint), device="cpu").open()
+        for _ in range(2)
+    )
+    assert first._model is second._model
+    copy = tmp_path / "classifier.pt"
+    shutil.copy(untrained_checkpoint, copy)
+    other = MaterialClassifier(CLASSES, checkpoint=str(copy), device="cpu").open()
+    assert other._model is not first._model
+    os.utime(copy, ns=(0, 1))  # rewritten: another modification time
+    again = MaterialClassifier(CLASSES, checkpoint=str(copy), device="cpu").open()
+    assert again._model is not other._model

@@ -188,7 +188,7 @@ class MaterialClassifier:
             )
         self._device = resolve_device(self.device_name)
         self._model = inference_model(
-            ckpt.build(self._device), ckpt.input_size, self._device, self.cuda_graphs
+            lambda: ckpt.build(self._device), ckpt.input_size, self._device, self.cuda_graphs, path
         )
         self._ckpt = ckpt
         if self.background_dir is not None:

@@ -9,6 +9,8 @@ from __future__ import annotations
 
 import logging
 import warnings
+from collections import OrderedDict
+from collections.abc import Callable
 from pathlib import Path
 
 import torch
@@ -22,6 +24,10 @@ from neuralfeels_sem.perception.graphed import GraphedModel
 log = logging.getLogger(__name__)
 
 ARCH = "efficientnet-b0"
+# Traced CPU models kept per checkpoint file (inference_model): a frozen model holds no
+# state a forward changes, so classifiers of one process can share it.
+CPU_MODELS_KEPT = 2
+_cpu_models: OrderedDict[tuple, nn.Module] = OrderedDict()
 HEAD_KEYS = ("_fc.weight", "_fc.bias")
 # The library keeps TensorFlow's BatchNorm decay of 0.99 (PyTorch momentum 0.01): its
 # running statistics lag hundreds of steps behind the weights, so on a few thousand
@@ -108,19 +114,40 @@ def fold_same_padding(model: nn.Module) -> nn.Module:
 
 
 def inference_model(
-    model: nn.Module, input_size: int, device: torch.device, cuda_graphs: bool
+    build: Callable[[], nn.Module],
+    input_size: int,
+    device: torch.device,
+    cuda_graphs: bool,
+    source: Path | None = None,
 ) -> nn.Module:
-    """A trained model (eval mode, on `device`) made ready for inference only: batch norms
-    and symmetric paddings folded, then replayed from CUDA graphs on a GPU (`cuda_graphs`,
-    perception/graphed.py) or traced and frozen on the CPU. The same outputs either way
-    (to the bit on the CPU; the GPU within its own rounding)."""
-    model = fold_same_padding(fold_batch_norms(model))
+    """A trained model (`build()`: eval mode, on `device`) made ready for inference only:
+    batch norms and symmetric paddings folded, then replayed from CUDA graphs on a GPU
+    (`cuda_graphs`, perception/graphed.py) or traced and frozen on the CPU. The same
+    outputs either way (to the bit on the CPU; the GPU within its own rounding).
+
+    Tracing takes 1-3 s, so the CPU model of a checkpoint file (`source`, unchanged since:
+    same size and modification time) is kept for the next classifier that opens it in
+    this process (the last CPU_MODELS_KEPT files).
+    """
+    key = None
+    if source is not None and device.type == "cpu" and source.is_file():
+        stat = source.stat()
+        key = (str(source.resolve()), stat.st_size, stat.st_mtime_ns, input_size)
+        if key in _cpu_models:
+            _cpu_models.move_to_end(key)
+            return _cpu_models[key]
+    model = fold_same_padding(fold_batch_norms(build()))
     if cuda_graphs and device.type == "cuda":
         graphed = GraphedModel(model)
         graphed.capture((3, input_size, input_size), device)
         return graphed
-    if device.type == "cpu":
-        return trace_for_cpu(model, input_size)
+    if device.type != "cpu":
+        return model
+    model = trace_for_cpu(model, input_size)
+    if key is not None:
+        _cpu_models[key] = model
+        while len(_cpu_models) > CPU_MODELS_KEPT:
+            _cpu_models.popitem(last=False)
     return model
 
 
