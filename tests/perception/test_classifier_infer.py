@@ -178,23 +178,42 @@ def test_edge_share_counts_border_pixels() -> None:
     assert edge_share(mask, 16) == 0.0
 
 
-def test_classifiers_of_one_checkpoint_file_share_its_traced_cpu_model(
-    untrained_checkpoint: Path, tmp_path: Path
+def test_the_traced_cpu_model_is_cached_on_disk_by_checkpoint_content(
+    untrained_checkpoint: Path, tmp_path: Path, caplog
 ) -> None:
-    """Tracing takes seconds: a second classifier of the same unchanged file in the process
-    takes the first's model; a copy elsewhere, or the file rewritten, gets its own."""
-    import os
+    """Traced once and saved; the next open loads it (the same outputs to the bit); a copy
+    of the checkpoint elsewhere shares the file; a damaged file is traced over."""
     import shutil
 
-    first, second = (
-        MaterialClassifier(CLASSES, checkpoint=str(untrained_checkpoint), device="cpu").open()
-        for _ in range(2)
-    )
-    assert first._model is second._model
-    copy = tmp_path / "classifier.pt"
+    import torch
+
+    from neuralfeels_sem.perception.classifier.checkpoint import load_checkpoint
+    from neuralfeels_sem.perception.classifier.model import fold_batch_norms, fold_same_padding
+    from neuralfeels_sem.perception.classifier.traced_cache import cached_trace
+
+    ckpt = load_checkpoint(untrained_checkpoint)
+    eager = fold_same_padding(fold_batch_norms(ckpt.build(torch.device("cpu"))))
+    built = []
+
+    def folded():
+        built.append(1)
+        return eager
+
+    cache = tmp_path / "cache"
+    cache.mkdir()
+    first = cached_trace(untrained_checkpoint, 32, folded, cache)
+    (saved,) = cache.glob("*.pt")
+    copy = tmp_path / "elsewhere.pt"
     shutil.copy(untrained_checkpoint, copy)
-    other = MaterialClassifier(CLASSES, checkpoint=str(copy), device="cpu").open()
-    assert other._model is not first._model
-    os.utime(copy, ns=(0, 1))  # rewritten: another modification time
-    again = MaterialClassifier(CLASSES, checkpoint=str(copy), device="cpu").open()
-    assert again._model is not other._model
+    loaded = cached_trace(copy, 32, folded, cache)
+    assert len(built) == 1 and loaded is not first  # loaded from the file, not traced
+    x = torch.rand(3, 3, 32, 32).contiguous(memory_format=torch.channels_last)
+    with torch.inference_mode():
+        assert torch.equal(loaded(x), eager(x)) and torch.equal(first(x), eager(x))
+    saved.write_bytes(b"not a model")
+    again = cached_trace(untrained_checkpoint, 32, folded, cache)
+    assert len(built) == 2 and "tracing again" in caplog.text
+    with torch.inference_mode():
+        assert torch.equal(again(x), eager(x))
+    assert cached_trace(untrained_checkpoint, 32, folded, cache) is not None
+    assert len(built) == 2  # the damaged file was replaced

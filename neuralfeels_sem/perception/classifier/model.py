@@ -9,7 +9,6 @@ from __future__ import annotations
 
 import logging
 import warnings
-from collections import OrderedDict
 from collections.abc import Callable
 from pathlib import Path
 
@@ -24,10 +23,6 @@ from neuralfeels_sem.perception.graphed import GraphedModel
 log = logging.getLogger(__name__)
 
 ARCH = "efficientnet-b0"
-# Traced CPU models kept per checkpoint file (inference_model): a frozen model holds no
-# state a forward changes, so classifiers of one process can share it.
-CPU_MODELS_KEPT = 2
-_cpu_models: OrderedDict[tuple, nn.Module] = OrderedDict()
 HEAD_KEYS = ("_fc.weight", "_fc.bias")
 # The library keeps TensorFlow's BatchNorm decay of 0.99 (PyTorch momentum 0.01): its
 # running statistics lag hundreds of steps behind the weights, so on a few thousand
@@ -123,32 +118,23 @@ def inference_model(
     """A trained model (`build()`: eval mode, on `device`) made ready for inference only:
     batch norms and symmetric paddings folded, then replayed from CUDA graphs on a GPU
     (`cuda_graphs`, perception/graphed.py) or traced and frozen on the CPU. The same
-    outputs either way (to the bit on the CPU; the GPU within its own rounding).
-
-    Tracing takes 1-3 s, so the CPU model of a checkpoint file (`source`, unchanged since:
-    same size and modification time) is kept for the next classifier that opens it in
-    this process (the last CPU_MODELS_KEPT files).
+    outputs either way (to the bit on the CPU; the GPU within its own rounding). On the
+    CPU the traced model of a checkpoint file `source` is cached (traced_cache.py).
     """
-    key = None
-    if source is not None and device.type == "cpu" and source.is_file():
-        stat = source.stat()
-        key = (str(source.resolve()), stat.st_size, stat.st_mtime_ns, input_size)
-        if key in _cpu_models:
-            _cpu_models.move_to_end(key)
-            return _cpu_models[key]
-    model = fold_same_padding(fold_batch_norms(build()))
+    if device.type == "cpu" and source is not None:
+        from neuralfeels_sem.perception.classifier.traced_cache import cached_trace
+
+        return cached_trace(source, input_size, lambda: _folded(build()))
+    model = _folded(build())
     if cuda_graphs and device.type == "cuda":
         graphed = GraphedModel(model)
         graphed.capture((3, input_size, input_size), device)
         return graphed
-    if device.type != "cpu":
-        return model
-    model = trace_for_cpu(model, input_size)
-    if key is not None:
-        _cpu_models[key] = model
-        while len(_cpu_models) > CPU_MODELS_KEPT:
-            _cpu_models.popitem(last=False)
-    return model
+    return trace_for_cpu(model, input_size) if device.type == "cpu" else model
+
+
+def _folded(model: nn.Module) -> nn.Module:
+    return fold_same_padding(fold_batch_norms(model))
 
 
 def trace_for_cpu(model: nn.Module, input_size: int) -> nn.Module:
@@ -171,12 +157,21 @@ def trace_for_cpu(model: nn.Module, input_size: int) -> nn.Module:
         with torch.inference_mode(), warnings.catch_warnings():
             warnings.simplefilter("ignore", DeprecationWarning)
             frozen = torch.jit.freeze(torch.jit.trace(model, example))
-            for _ in range(2):  # TorchScript profiles its first two calls: not in a run's loop
-                frozen(example)
+            warm_up(frozen, input_size)
     except Exception as exc:  # noqa: BLE001 (any tracing failure leaves the eager model)
         log.warning("classifier not traced (%s); running it eagerly", exc)
         return model
     return frozen
+
+
+def warm_up(traced: torch.jit.ScriptModule, input_size: int) -> None:
+    """TorchScript profiles a module's first two calls: make them before a run's loop."""
+    example = torch.zeros(1, 3, input_size, input_size).contiguous(
+        memory_format=torch.channels_last
+    )
+    with torch.inference_mode():
+        for _ in range(2):
+            traced(example)
 
 
 def load_backbone(model: nn.Module, weights: str | Path) -> None:
