@@ -86,11 +86,20 @@ class MapMemory:
             else:
                 label = touch_labels.get(source)
                 kept["tactile"] += self._add_touch(frame, source, pts, world_T_object, label)
-        if self.space_prior is not None and (
-            frame.index % self.hull_every == 0 or not self.space_prior.ready
-        ):
-            self.space_prior.update_hull()
+        if self.space_prior is not None and self._hull_due(frame.index):
+            self.space_prior.update_hull(frame.index)
         return kept["camera"], kept["tactile"]
+
+    def _hull_due(self, frame_index: int) -> bool:
+        """Rebuild the hull on the first frame mapped of each block of `hull_every` frame
+        indices (offline: every hull_every-th frame; at realtime pace, where frames are
+        skipped, still once a block), and while there is none."""
+        built_at = self.space_prior.built_at
+        return (
+            not self.space_prior.ready
+            or built_at is None
+            or frame_index // self.hull_every != built_at // self.hull_every
+        )
 
     def _add_camera(
         self, frame: Frame, pts: np.ndarray, every_pixel: np.ndarray | None, pose: np.ndarray

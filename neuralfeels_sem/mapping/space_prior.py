@@ -64,6 +64,7 @@ class SpaceCarvingPrior:
         self.facets: np.ndarray | None = None  # (F, 4): n . x + d <= 0 inside
         self._tree: cKDTree | None = None
         self._hull_source = self.hull_points  # the points the hull was last built from
+        self.built_at: int | None = None  # the frame index it was built at (None: unknown)
         self._rng = np.random.default_rng(seed)
 
     # ------------------------------------------------------------------ updates
@@ -112,8 +113,10 @@ class SpaceCarvingPrior:
             self.hull_points[slot[take]] = rest[take]
         self.points_seen = seen + len(rest)
 
-    def update_hull(self) -> None:
-        """Recompute the convex hull of the reservoir (no hull while it is degenerate)."""
+    def update_hull(self, frame_index: int | None = None) -> None:
+        """Recompute the convex hull of the reservoir (no hull while it is degenerate);
+        `frame_index`: the frame it is built at, for callers that rebuild every few frames."""
+        self.built_at = frame_index
         self._build_hull(self.hull_points.copy())
 
     def _build_hull(self, source: np.ndarray) -> None:
@@ -176,6 +179,7 @@ class SpaceCarvingPrior:
             "points_seen": self.points_seen,
             "rng": self._rng.bit_generator.state,
             "hull_source": torch.from_numpy(self._hull_source.copy()),
+            "built_at": -1 if self.built_at is None else self.built_at,
         }
 
     def load_state_dict(self, state: dict) -> None:
@@ -186,6 +190,8 @@ class SpaceCarvingPrior:
         self._rng.bit_generator.state = state["rng"]
         # Checkpoints from before the hull was rebuilt every few frames: the reservoir.
         source = state.get("hull_source")
+        built_at = int(state.get("built_at", -1))
+        self.built_at = None if built_at < 0 else built_at
         self._build_hull(self.hull_points.copy() if source is None else source.numpy().copy())
 
 

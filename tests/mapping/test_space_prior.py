@@ -160,7 +160,7 @@ def test_the_mapper_rebuilds_the_hull_every_hull_every_frames(monkeypatch) -> No
     monkeypatch.setattr(
         SpaceCarvingPrior,
         "update_hull",
-        lambda self: rebuilt.append(self.points_seen) or update(self),
+        lambda self, *index: rebuilt.append(self.points_seen) or update(self, *index),
     )
     mapper = small_mapper(space_prior_hull_every=3, steps_per_frame=1, warmup_steps=1)
     for frame, labels in sphere_frames(8, touches_per_frame=1):
@@ -169,3 +169,18 @@ def test_the_mapper_rebuilds_the_hull_every_hull_every_frames(monkeypatch) -> No
     assert len(rebuilt) == 3 and rebuilt == sorted(set(rebuilt)) and rebuilt[-1] < seen
     with pytest.raises(ValueError, match="space_prior_hull_every"):
         small_mapper(space_prior_hull_every=0)
+
+
+def test_with_frames_skipped_the_hull_is_still_rebuilt_once_a_block() -> None:
+    """At realtime pace the mapper skips frames: with space_prior_hull_every=5 and only
+    frames 2, 7, 12, ... mapped (never a multiple of 5) the hull is rebuilt on the first
+    frame mapped of each block of 5 indices, not just once."""
+    from tests.mapping.synthetic import small_mapper, sphere_frames
+
+    mapper = small_mapper(space_prior_hull_every=5, steps_per_frame=1, warmup_steps=1)
+    built = []
+    for k, (frame, labels) in enumerate(sphere_frames(4, touches_per_frame=1)):
+        frame.index = 2 + 5 * k
+        mapper.add_frame(frame, labels)
+        built.append(mapper.memory.space_prior.built_at)
+    assert built == [2, 7, 12, 17]
