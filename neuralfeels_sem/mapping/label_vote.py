@@ -121,12 +121,10 @@ def _nearest_per_press(
     nearest = distances.masked_fill(own, inf)
     agreeing = nearest.masked_fill(labels[:, None] != labels[None, :], inf)
     columns = press.expand_as(distances)
-    shape = (len(press), int(press.max()) + 1)
-    return tuple(  # type: ignore[return-value]
-        torch.full(shape, inf, dtype=distances.dtype, device=distances.device).scatter_reduce(
-            1, columns, d, "amin"
-        )
-        for d in (nearest, agreeing)
+    empty = inf.expand(len(press), int(press.max()) + 1)  # scatter_reduce copies it
+    return (
+        empty.scatter_reduce(1, columns, nearest, "amin"),
+        empty.scatter_reduce(1, columns, agreeing, "amin"),
     )
 
 

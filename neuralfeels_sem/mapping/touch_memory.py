@@ -281,7 +281,7 @@ class TouchBuffer:
         readings; a touch across a border is one item per side, each judged on its own."""
         if not self._labels:
             return []
-        labels = torch.cat(self._labels)
+        labels = self._joined_lists()["labels"]
         used, _ = self._used_flat(labels, self._touch_of_point(labels.device))
         return list(torch.split(used, [len(lab) for lab in self._labels]))
 

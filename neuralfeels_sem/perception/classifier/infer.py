@@ -23,7 +23,8 @@ from neuralfeels_sem.core.errors import ConfigError, DataError
 from neuralfeels_sem.core.frame import TactileReading
 from neuralfeels_sem.perception.classifier.checkpoint import ClassifierCheckpoint, load_checkpoint
 from neuralfeels_sem.perception.classifier.edge_streak import EdgeStreak
-from neuralfeels_sem.perception.classifier.model import build_model, inference_model
+from neuralfeels_sem.perception.classifier.inference import inference_model
+from neuralfeels_sem.perception.classifier.model import build_model
 from neuralfeels_sem.perception.classifier.patches import (
     crop_around,
     crop_contact_share,

@@ -9,7 +9,6 @@ from __future__ import annotations
 
 import logging
 import warnings
-from collections.abc import Callable
 from pathlib import Path
 
 import torch
@@ -18,7 +17,6 @@ from efficientnet_pytorch.utils import Conv2dStaticSamePadding
 from torch import nn
 
 from neuralfeels_sem.core.errors import DataError
-from neuralfeels_sem.perception.graphed import GraphedModel
 
 log = logging.getLogger(__name__)
 
@@ -108,35 +106,6 @@ def fold_same_padding(model: nn.Module) -> nn.Module:
     return model
 
 
-def inference_model(
-    build: Callable[[], nn.Module],
-    input_size: int,
-    device: torch.device,
-    cuda_graphs: bool,
-    source: Path | None = None,
-) -> nn.Module:
-    """A trained model (`build()`: eval mode, on `device`) made ready for inference only:
-    batch norms and symmetric paddings folded, then replayed from CUDA graphs on a GPU
-    (`cuda_graphs`, perception/graphed.py) or traced and frozen on the CPU. The same
-    outputs either way (to the bit on the CPU; the GPU within its own rounding). On the
-    CPU the traced model of a checkpoint file `source` is cached (traced_cache.py).
-    """
-    if device.type == "cpu" and source is not None:
-        from neuralfeels_sem.perception.classifier.traced_cache import cached_trace
-
-        return cached_trace(source, input_size, lambda: _folded(build()))
-    model = _folded(build())
-    if cuda_graphs and device.type == "cuda":
-        graphed = GraphedModel(model)
-        graphed.capture((3, input_size, input_size), device)
-        return graphed
-    return trace_for_cpu(model, input_size) if device.type == "cpu" else model
-
-
-def _folded(model: nn.Module) -> nn.Module:
-    return fold_same_padding(fold_batch_norms(model))
-
-
 def trace_for_cpu(model: nn.Module, input_size: int) -> nn.Module:
     """The inference model traced to TorchScript and frozen: the same outputs to the bit
     without the Python of its ~80 module calls per forward.
@@ -150,9 +119,7 @@ def trace_for_cpu(model: nn.Module, input_size: int) -> nn.Module:
     """
     if model.training:
         raise ValueError("trace_for_cpu needs a model in eval mode")
-    example = torch.zeros(1, 3, input_size, input_size).contiguous(
-        memory_format=torch.channels_last
-    )
+    example = _example(input_size)
     try:
         with torch.inference_mode(), warnings.catch_warnings():
             warnings.simplefilter("ignore", DeprecationWarning)
@@ -166,12 +133,15 @@ def trace_for_cpu(model: nn.Module, input_size: int) -> nn.Module:
 
 def warm_up(traced: torch.jit.ScriptModule, input_size: int) -> None:
     """TorchScript profiles a module's first two calls: make them before a run's loop."""
-    example = torch.zeros(1, 3, input_size, input_size).contiguous(
-        memory_format=torch.channels_last
-    )
+    example = _example(input_size)
     with torch.inference_mode():
         for _ in range(2):
             traced(example)
+
+
+def _example(input_size: int) -> torch.Tensor:
+    """One blank input in the layout the model runs in (channels-last)."""
+    return torch.zeros(1, 3, input_size, input_size).contiguous(memory_format=torch.channels_last)
 
 
 def load_backbone(model: nn.Module, weights: str | Path) -> None:

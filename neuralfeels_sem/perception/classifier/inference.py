@@ -1,0 +1,39 @@
+"""The trained classifier made ready for inference on the run's device."""
+
+from __future__ import annotations
+
+from collections.abc import Callable
+from pathlib import Path
+
+import torch
+from torch import nn
+
+from neuralfeels_sem.perception.classifier.model import fold_batch_norms, fold_same_padding
+from neuralfeels_sem.perception.classifier.traced_cache import cached_trace
+from neuralfeels_sem.perception.graphed import GraphedModel
+
+
+def inference_model(
+    build: Callable[[], nn.Module],
+    input_size: int,
+    device: torch.device,
+    cuda_graphs: bool,
+    source: Path,
+) -> nn.Module:
+    """The model of checkpoint file `source` (`build()`: eval mode, on `device`) for
+    inference only: batch norms and symmetric paddings folded, then traced and frozen on
+    the CPU (cached by `source`'s content, traced_cache.py) or replayed from CUDA graphs
+    on a GPU (`cuda_graphs`, perception/graphed.py). The same outputs either way (to the
+    bit on the CPU; the GPU within its own rounding)."""
+    if device.type == "cpu":
+        return cached_trace(source, input_size, lambda: _folded(build()))
+    model = _folded(build())
+    if cuda_graphs and device.type == "cuda":
+        graphed = GraphedModel(model)
+        graphed.capture((3, input_size, input_size), device)
+        return graphed
+    return model
+
+
+def _folded(model: nn.Module) -> nn.Module:
+    return fold_same_padding(fold_batch_norms(model))
