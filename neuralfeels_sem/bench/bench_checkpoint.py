@@ -1,4 +1,4 @@
-"""Checkpoint size and save / load time at the CPU default config (2^19 hash table).
+"""Checkpoint size and save / load time at the CPU default config (2^16 hash table).
 
 The field is built as a map run builds it (mapping/field_init.build_field, so untouched
 rows are drawn again on load) and trained by the default mapper (MapperConfig defaults)

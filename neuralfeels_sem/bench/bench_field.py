@@ -2,8 +2,8 @@
 
 One step = SemanticField forward (SDF + material branch) on 4096 points, an L1 SDF loss
 plus a cross-entropy material loss, backward, FieldAdam step. Measured for the CPU default
-(log2 table 19) and the paper's table (log2 24), with row-sparse and dense table
-gradients. Each configuration runs in a fresh process so its peak RSS (max resident set
+table (HashGridConfig.log2_table_size, 16), a larger one (19: table and moments no longer
+fit a 32 MB cache) and the paper's (24), with row-sparse and dense table gradients. Each configuration runs in a fresh process so its peak RSS (max resident set
 size minus the size after imports, during training; `..._with_query` also covers one
 65536-point no-grad SDF query, the marching-cubes chunk) is its own. On a CUDA machine the GPU rows are added,
 with torch's peak allocated memory.
@@ -18,6 +18,7 @@ import time
 import torch
 import torch.nn.functional as F
 
+from neuralfeels_sem.fields.hash_grid import HashGridConfig
 from neuralfeels_sem.utils.device import resolve_threads
 
 POINTS = 4096
@@ -74,7 +75,6 @@ def _query_seconds(field, device: str) -> float:
 
 def _measure(log2_table_size: int, sparse: bool, device: str) -> dict:
     from neuralfeels_sem.fields import FieldAdam, SemanticField
-    from neuralfeels_sem.fields.hash_grid import HashGridConfig
     from neuralfeels_sem.fields.semantic_field import SemanticFieldConfig
 
     rss0 = resource.getrusage(resource.RUSAGE_SELF).ru_maxrss
@@ -134,11 +134,15 @@ def _run_isolated(log2: int, sparse: bool, device: str) -> dict:
     return result
 
 
+# (log2 table size, name in the report's keys)
+TABLES = ((HashGridConfig().log2_table_size, "cpu_default"), (19, "larger"), (24, "paper"))
+
+
 def run() -> dict:
     devices = ["cpu"] + (["cuda"] if torch.cuda.is_available() else [])
     results: dict = {"points_per_step": POINTS, "threads": resolve_threads("auto")}
     for device in devices:
-        for log2, name in ((19, "cpu_default"), (24, "paper")):
+        for log2, name in TABLES:
             for sparse in (True, False):
                 key = f"{device}_{name}_log2_{log2}_{'sparse' if sparse else 'dense'}"
                 print(f"[bench_field] {key} ...", flush=True)

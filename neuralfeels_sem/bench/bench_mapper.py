@@ -2,7 +2,7 @@
 the realtime factor of the default run.
 
 The field, optimiser and mapper use the config dataclass defaults, i.e. the command line's
-(SemanticFieldConfig, OptimizerConfig, MapperConfig: 2^19 sparse hash table, FieldAdam, 288
+(SemanticFieldConfig, OptimizerConfig, MapperConfig: 2^16 sparse hash table, FieldAdam, 288
 camera + 96 tactile rays x 10 samples + up to 512 space-prior + 256 material points per
 step; warm-up off). Data: the analytic sphere scene
 (mapping/sphere_scene.py), one 96x72 camera view and four DIGIT touches per frame.

@@ -272,7 +272,7 @@ def test_byte_planes_are_lossless_and_deflate_repeated_bytes(dtype) -> None:
 
 @pytest.mark.slow
 def test_a_default_config_checkpoint_is_at_most_40_mb(tmp_path) -> None:
-    """The CPU default field (2^19 table) after a few hundred steps of the default mapper."""
+    """The CPU default field (2^16 table) after a few hundred steps of the default mapper."""
     from neuralfeels_sem.mapping.sphere_scene import sphere_frames
 
     torch.manual_seed(0)
