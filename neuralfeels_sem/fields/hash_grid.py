@@ -50,7 +50,7 @@ class HashGridConfig:
     per_level_scale: float = 1.3819
     # The paper uses 24 (2^24 rows x 7 hashed levels: 1.1 GB of float32 before Adam). On a
     # CPU the step is bound by random row reads and writes: at 16, table and moments (22 MB)
-    # stay in a 32 MB L3 cache, and the default run's mapper took about 37 % less CPU
+    # stay in a 32 MB L3 cache, and the default run's mapper took about a third less CPU
     # than at 19 (147 MB) with the same maps (16 runs of the shipped objects within
     # -0.42..+0.79 points each, docs/field_and_mapper.md#table-size).
     log2_table_size: int = 16
