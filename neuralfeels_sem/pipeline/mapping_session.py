@@ -61,7 +61,7 @@ class SessionSettings:
     progression_snapshots: int
     max_lag_s: float  # read at sensor.pace=realtime
     checkpoint_storage: str = "auto"  # mapping.checkpoint_storage (checkpoint_codec.py)
-    acquire_thread: bool = False  # mapping.acquire_thread (producer.py)
+    acquire_thread: bool = True  # mapping.acquire_thread (producer.py)
 
 
 class MappingSession:

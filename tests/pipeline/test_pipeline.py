@@ -97,12 +97,12 @@ def _sequential_reference(cfg) -> dict:
         sensor.close()
 
 
-# The acquisition-thread variants run in `make test-all` (slow): the setting is off by
-# default, and tests/pipeline/test_producer.py covers its thread hand-over quickly.
+# The one-thread variants run in `make test-all` (slow): the acquisition thread is the
+# default, and tests/pipeline/test_producer.py covers both hand-overs quickly.
 ACQUIRE = pytest.mark.parametrize(
     "acquire",
-    [False, pytest.param(True, marks=pytest.mark.slow)],
-    ids=["one-thread", "acquire-thread"],
+    [True, pytest.param(False, marks=pytest.mark.slow)],
+    ids=["acquire-thread", "one-thread"],
 )
 
 
@@ -176,11 +176,11 @@ class _FailingSensor:
 
 @pytest.mark.parametrize(
     "error, raised, acquire",
-    [(RuntimeError("renderer lost its context\nsecond line"), FrameSourceError, False),
-     pytest.param(RuntimeError("renderer lost its context\nsecond line"), FrameSourceError, True,
+    [(RuntimeError("renderer lost its context\nsecond line"), FrameSourceError, True),
+     pytest.param(RuntimeError("renderer lost its context\nsecond line"), FrameSourceError, False,
                   marks=pytest.mark.slow),
-     (DataError("frame 3: frames.jsonl is damaged"), DataError, False)],
-    ids=["crash", "crash-in-acquire-thread", "user-error"],
+     (DataError("frame 3: frames.jsonl is damaged"), DataError, True)],
+    ids=["crash-in-acquire-thread", "crash-one-thread", "user-error"],
 )  # fmt: skip
 def test_a_failing_producer_ends_the_run_and_keeps_what_was_mapped(
     tmp_path, error, raised, acquire
