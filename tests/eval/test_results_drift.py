@@ -157,3 +157,14 @@ def test_an_active_run_before_the_contact_share_reads_as_without_it() -> None:
         "sensor.planner.weigh_by_contact": (False, True)
     }
     assert drift({"sensor": {"policy": "scripted", "planner": planner}}, {}, today) == {}
+
+
+def test_the_acquisition_thread_makes_no_offline_run_another_setting() -> None:
+    """Offline the map is the same with one producer thread or two; at realtime it is not."""
+    today = {"sensor.pace": "offline", "mapping.acquire_thread": True}
+    one_thread = {"mapping": {"acquire_thread": False}}
+    assert drift({"sensor": {"pace": "offline"}, **one_thread}, {}, today) == {}
+    realtime = {"sensor": {"pace": "realtime"}, **one_thread}
+    assert drift(realtime, {"sensor.pace": "realtime"}, today) == {
+        "mapping.acquire_thread": (False, True)
+    }
