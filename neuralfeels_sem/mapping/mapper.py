@@ -174,8 +174,8 @@ class MapperConfig:
             "camera_rays": 0, "tactile_rays": 0, "band_samples": 0, "free_samples": 0,
             "material_points": 0, "eikonal_points": 0, "space_prior_points": 0,
             "space_prior_resolution": 8, "space_prior_hull_every": 1, "window_recent": 1,
-            "window_by_loss": 0, "max_keyframes": 1, "label_vote_min_neighbours": 1, "label_vote_min_support": 0,
-            "label_vote_press_gap": 0, "label_vote_steady_frames": 0,
+            "window_by_loss": 0, "max_keyframes": 1, "label_vote_min_neighbours": 1,
+            "label_vote_min_support": 0, "label_vote_press_gap": 0, "label_vote_steady_frames": 0,
         }  # fmt: skip
         for name, low in at_least.items():
             if getattr(self, name) < low:

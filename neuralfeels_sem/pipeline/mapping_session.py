@@ -53,15 +53,15 @@ log = logging.getLogger(__name__)
 
 @dataclass
 class SessionSettings:
-    """Cadences of a session (from eval.every_k_frames, mapping.checkpoint_every,
-    viz.progression_snapshots) and the realtime lag bound (mapping.max_lag_s)."""
+    """A session's cadences, lag bound, checkpoint storage and producer threads, from the
+    config (eval.*, mapping.*, viz.*), where their defaults live."""
 
     every_k_frames: int
     checkpoint_every: int  # 0: only the final checkpoint
     progression_snapshots: int
     max_lag_s: float  # read at sensor.pace=realtime
-    checkpoint_storage: str = "auto"  # mapping.checkpoint_storage (checkpoint_codec.py)
-    acquire_thread: bool = True  # mapping.acquire_thread (producer.py)
+    checkpoint_storage: str  # mapping.checkpoint_storage (checkpoint_codec.py)
+    acquire_thread: bool  # mapping.acquire_thread (producer.py)
 
 
 class MappingSession:
