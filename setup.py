@@ -24,6 +24,10 @@ INSTALL_REQUIRES = [
     "rtree>=1.2",
     "scikit-image>=0.22",
     "efficientnet-pytorch==0.7.1",
+    # CPU inference of the classifier and the tactile depth network (perception/onnx_cpu.py):
+    # onnx for torch's exporter, onnxruntime to run the exported graph.
+    "onnx>=1.16",
+    "onnxruntime>=1.18",
     "pillow>=10",
     "matplotlib>=3.8",
     "tqdm>=4.66",

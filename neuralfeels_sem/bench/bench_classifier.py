@@ -1,8 +1,9 @@
 """Material classifier inference speed: images/s for a batch of 4 DIGIT frames (one per finger).
 
 Measured through `MaterialClassifier.predict_images` (resize + normalise + EfficientNet-B0),
-at the paper's 224 px input and at the shipped checkpoint's input size, on the CPU (all
-cores) and on a CUDA GPU when one is visible. Also times the contact gate per frame.
+at the paper's 224 px input and at the shipped checkpoint's input size, on the CPU (the
+run's threads; ONNX Runtime, the default, and the traced torch model, `_torch`, side by
+side) and on a CUDA GPU when one is visible. Also times the contact gate per frame.
 Target: >= 30 images/s at batch 4, i.e. every finger at 7.5 Hz.
 """
 
@@ -39,6 +40,12 @@ def _images_per_second(clf: MaterialClassifier, frames: np.ndarray, seconds: flo
     return count / (time.perf_counter() - start)
 
 
+def _variants(devices: list[str]) -> list[tuple[str, str, str]]:
+    """(device, cpu_runtime, key suffix) of each measurement."""
+    variants = [("cpu", "onnxruntime", "cpu"), ("cpu", "torch", "cpu_torch")]
+    return variants + [(d, "torch", d) for d in devices if d != "cpu"]
+
+
 def run() -> dict:
     rng = np.random.default_rng(0)
     frames = rng.integers(0, 256, (BATCH, 320, 240, 3), dtype=np.uint8)
@@ -55,18 +62,12 @@ def run() -> dict:
             checkpoints[f"shipped_{shipped.input_size}px"] = SHIPPED_CHECKPOINT
             names = shipped.class_names
         for label, path in checkpoints.items():
-            for device in devices:
-                classes = names if label.startswith("shipped") else CLASSES
-                clf = MaterialClassifier(classes, checkpoint=str(path), device=device).open()
-                result[f"images_per_s_{label}_{device}"] = round(_images_per_second(clf, frames), 1)
-                if device == "cpu" and torch.get_num_threads() > 1:
-                    # On a shared, busy machine one thread can beat oversubscribed ones.
-                    threads = torch.get_num_threads()
-                    torch.set_num_threads(1)
-                    result[f"images_per_s_{label}_cpu_1thread"] = round(
-                        _images_per_second(clf, frames), 1
-                    )
-                    torch.set_num_threads(threads)
+            classes = names if label.startswith("shipped") else CLASSES
+            for device, runtime, key in _variants(devices):
+                clf = MaterialClassifier(
+                    classes, checkpoint=str(path), device=device, cpu_runtime=runtime
+                ).open()
+                result[f"images_per_s_{label}_{key}"] = round(_images_per_second(clf, frames), 1)
     gate = ContactGate()
     background = frames[0].copy()
     start, n = time.perf_counter(), 0

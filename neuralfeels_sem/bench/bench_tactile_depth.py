@@ -1,6 +1,7 @@
 """Tactile depth network inference speed: images/s for a batch of 4 DIGIT frames (one per
 finger), through `DepthNetPredictor.predict` (downsampling, the network, upsampling to
-320 x 240, thresholding), on the CPU with 1 and 2 threads. Uses the shipped checkpoint
+320 x 240, thresholding), on the CPU with 1 and 2 threads, through ONNX Runtime (the
+default) and torch (`torch_` keys). Uses the shipped checkpoint
 (a fresh network of the same size when it is absent). Target: >= 100 images/s at batch 4.
 The 1-minute load average is recorded beside the figures: on a shared machine, threads
 that wait for a busy core cost more than they give.
@@ -44,13 +45,14 @@ def run(seconds: float = 5.0) -> dict:
         path = SHIPPED_CHECKPOINT
         if not path.is_file():
             path = save_checkpoint(Path(tmp) / "d.pt", build_model(FALLBACK_WIDTH), FALLBACK_SIZE)
-        predictor = DepthNetPredictor(path)
-        predictor.load()
-        result["input_size"] = list(predictor.input_size)
-        for n in (1, 2):
-            torch.set_num_threads(n)
-            result[f"load_average_1min_{n}thread"] = round(os.getloadavg()[0], 2)
-            rate = _images_per_second(predictor, frames, seconds)
-            result[f"images_per_s_cpu_{n}thread"] = round(rate, 1)
+        for runtime, suffix in (("onnxruntime", ""), ("torch", "torch_")):
+            for n in (1, 2):
+                torch.set_num_threads(n)  # before loading: an ONNX session keeps its count
+                predictor = DepthNetPredictor(path, cpu_runtime=runtime)
+                predictor.load()
+                result["input_size"] = list(predictor.input_size)
+                result[f"load_average_1min_{suffix}{n}thread"] = round(os.getloadavg()[0], 2)
+                rate = _images_per_second(predictor, frames, seconds)
+                result[f"images_per_s_cpu_{suffix}{n}thread"] = round(rate, 1)
     torch.set_num_threads(threads)
     return result

@@ -5,6 +5,7 @@ from __future__ import annotations
 from dataclasses import dataclass, field
 
 from neuralfeels_sem.configs.root import TaskConfig
+from neuralfeels_sem.perception.onnx_cpu import check_cpu_runtime
 
 
 @dataclass
@@ -61,8 +62,12 @@ class EfficientNetClassifierConfig:
     # On a GPU: replay the forward from CUDA graphs, one launch per batch instead of a few
     # hundred (perception/graphed.py); false runs it eagerly.
     cuda_graphs: bool = True
+    # On the CPU: onnxruntime (perception/onnx_cpu.py: about half the time a crop, outputs
+    # within float rounding) | torch (the traced model, to the bit of the eager one).
+    cpu_runtime: str = "onnxruntime"
 
     def __post_init__(self) -> None:
+        check_cpu_runtime("classifier.cpu_runtime", self.cpu_runtime)
         if not 0 <= self.patch_spacing_px <= 240:
             raise ValueError(
                 f"classifier.patch_spacing_px={self.patch_spacing_px} must be in 0..240 (0 = off)"

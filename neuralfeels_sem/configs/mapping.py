@@ -51,6 +51,11 @@ class MappingConfig:
     # cheap as the 2^16 table makes it, the default run's loop took 82.5-82.7 s against
     # 92.8-95.1 (the same map), and realtime runs mapped more frames (docs/usage.md).
     acquire_thread: bool = True
+    # At sensor.pace=offline the mapper is the loop's critical path: the producer, scoring
+    # and checkpoint threads add this to their nice value so that the mapper gets a core
+    # first (pipeline/thread_priority.py; Linux; 0: an equal share). On the 2-core CPU the
+    # default run's loop took 79-85 s against 94-98 (the same map; docs/usage.md).
+    helper_nice: int = 10
     # How checkpoint.pt stores the hash tables (mapping/checkpoint_codec.py): auto = exact
     # float32 while that fits 40 MB, else compact (float16 table, 8-bit Adam moments);
     # exact = always bit-for-bit resumable; compact = always the small form.
@@ -64,6 +69,8 @@ class MappingConfig:
     def __post_init__(self) -> None:
         if self.pose not in POSE_SOURCES:
             raise ValueError(f"mapping.pose={self.pose} must be one of {POSE_SOURCES}")
+        if not 0 <= self.helper_nice <= 19:
+            raise ValueError(f"mapping.helper_nice={self.helper_nice} must be in 0..19 (0: off)")
         if self.checkpoint_every < 0:
             raise ValueError(f"mapping.checkpoint_every={self.checkpoint_every} must be >= 0")
         if self.checkpoint_storage not in STORAGES:

@@ -48,6 +48,12 @@ FIGURES: tuple[tuple[str, str, str, str], ...] = (
     ("tactile_depth", "images_per_s_cpu_1thread", "tactile depth net, batch 4, 1 thread", "img/s"),
     ("tactile_depth", "images_per_s_cpu_2thread", "tactile depth net, batch 4, 2 threads", "img/s"),
     (
+        "tactile_depth",
+        "images_per_s_cpu_torch_1thread",
+        "tactile depth net, batch 4, 1 thread, torch",
+        "img/s",
+    ),
+    (
         "classifier",
         "images_per_s_shipped_112px_cpu",
         "classifier, shipped 112 px, batch 4",
@@ -57,6 +63,12 @@ FIGURES: tuple[tuple[str, str, str, str], ...] = (
         "classifier",
         "images_per_s_shipped_112px_cpu_1thread",
         "classifier, shipped 112 px, batch 4, 1 thread",
+        "img/s",
+    ),
+    (
+        "classifier",
+        "images_per_s_shipped_112px_cpu_torch",
+        "classifier, shipped 112 px, batch 4, torch",
         "img/s",
     ),
     ("classifier", "images_per_s_224px_cpu", "classifier, paper's 224 px, batch 4", "img/s"),

@@ -19,10 +19,11 @@ from neuralfeels_sem.utils.nested import flatten
 
 # Keys never compared: the object group is what the run is about (a generated object's
 # seed, a custom mesh), hydra's own settings are bookkeeping, and these keys only name
-# the run, decide whether pictures are drawn, or when the state is saved (a checkpoint
-# changes nothing the run maps: a resumed run continues bit for bit).
+# the run, decide whether pictures are drawn, when the state is saved (a checkpoint
+# changes nothing the run maps: a resumed run continues bit for bit) or at which priority
+# helper threads run (read offline only, where every frame is mapped in order).
 IGNORED_PREFIXES = ("object.", "hydra.")
-IGNORED_KEYS = frozenset({"seed", "viz.plots", "mapping.checkpoint_every"})
+IGNORED_KEYS = frozenset({"seed", "viz.plots", "mapping.checkpoint_every", "mapping.helper_nice"})
 _MISSING = object()
 
 # Config-group options removed since, with the option that composes the same config today
@@ -107,12 +108,18 @@ def compared(key: str, flat: dict[str, Any] | None = None) -> bool:
 # mapping.tracker.max_points_per_finger came with 1000 (the camera's cap, which applied to
 # every source before); the default became 200. mapping.mapper.label_vote_steady_frames
 # came with 0 (no press backs itself); the default became 3. sensor.planner.weigh_by_contact
-# came with true: the active runs before it ranked by score alone.
+# came with true: the active runs before it ranked by score alone. The networks' cpu_runtime
+# came with onnxruntime: runs before it ran them in torch.
 ADDED_SINCE: dict[str, tuple[str, Any]] = {
     "classifier.patch_probe": ("classifier.max_patches", 0),
     "mapping.tracker.max_points_per_finger": ("mapping.tracker.max_points_per_source", 1000),
     "mapping.mapper.label_vote_steady_frames": ("mapping.mapper.label_vote_press_gap", 0),
     "sensor.planner.weigh_by_contact": ("sensor.planner.candidates", False),
+    "classifier.cpu_runtime": ("classifier.cuda_graphs", "torch"),
+    "mapping.mapper.tactile_depth.cpu_runtime": (
+        "mapping.mapper.tactile_depth.min_contact_px",
+        "torch",
+    ),
 }
 
 

@@ -33,6 +33,7 @@ import torch
 from neuralfeels_sem.core.digit import GEL_DISTANCE_M, MAX_PENETRATION_M
 from neuralfeels_sem.core.errors import DataError
 from neuralfeels_sem.core.frame import TactileReading
+from neuralfeels_sem.perception.onnx_cpu import check_cpu_runtime
 from neuralfeels_sem.perception.tactile_depth_net import DepthNetPredictor
 
 TactileDepthSource = Literal["gt", "image", "net"]
@@ -52,9 +53,13 @@ class TactileDepthConfig:
     full_press_intensity: float = 60.0  # grey levels of change at the deepest press
     blur_px: int = 7
     min_contact_px: int = 150
+    # source=net on the CPU: onnxruntime (perception/onnx_cpu.py: about half the time a
+    # frame, depth within float rounding) | torch (eager, to the bit of older runs).
+    cpu_runtime: str = "onnxruntime"
 
     def __post_init__(self) -> None:
         key = "mapping.mapper.tactile_depth"
+        check_cpu_runtime(f"{key}.cpu_runtime", self.cpu_runtime)
         if self.source not in SOURCES:
             raise ValueError(f"{key}.source={self.source!r} is unknown; use one of {SOURCES}")
         if not 0 < self.contact_threshold < self.full_press_intensity:
@@ -82,7 +87,9 @@ class TactileDepth:
         self.min_contact_px = int(config.min_contact_px)
         # Constructing the predictor reads nothing; the checkpoint loads in `load` or on the
         # first touch.
-        self.net = DepthNetPredictor(config.checkpoint, self.min_contact_px, device)
+        self.net = DepthNetPredictor(
+            config.checkpoint, self.min_contact_px, device, cpu_runtime=config.cpu_runtime
+        )
 
     def load(self) -> None:
         """Load the network now (source=net; else nothing to load), not on the first touch."""

@@ -22,6 +22,7 @@ import numpy as np
 from torch import nn
 
 from neuralfeels_sem.eval.run_scorer import RunScorer
+from neuralfeels_sem.pipeline.thread_priority import at_priority
 
 
 @dataclass
@@ -42,6 +43,7 @@ class BackgroundEval:
         self,
         scorer: RunScorer,
         write_snapshot: Callable[[nn.Module, np.ndarray | None, float, int], None],
+        nice: int = 0,  # added to the worker's nice value (thread_priority.py)
     ) -> None:
         self.scorer = scorer
         self.write_snapshot = write_snapshot
@@ -49,7 +51,8 @@ class BackgroundEval:
         self._done: list[tuple[int, float, dict | None]] = []
         self._lock = threading.Lock()
         self._error: BaseException | None = None
-        self._thread = threading.Thread(target=self._work, name="background-eval", daemon=True)
+        work = at_priority(self._work, nice)
+        self._thread = threading.Thread(target=work, name="background-eval", daemon=True)
         self._thread.start()
 
     def submit(

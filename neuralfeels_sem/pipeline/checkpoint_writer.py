@@ -14,16 +14,18 @@ import threading
 from pathlib import Path
 
 from neuralfeels_sem.mapping.checkpoint import write_checkpoint
+from neuralfeels_sem.pipeline.thread_priority import at_priority
 
 
 class CheckpointWriter:
     """Writes `take_checkpoint` copies to one path, in order, on a worker thread."""
 
-    def __init__(self, path: Path) -> None:
-        self.path = path
+    def __init__(self, path: Path, nice: int = 0) -> None:
+        self.path = path  # nice: added to the worker's nice value (thread_priority.py)
         self._jobs: queue.Queue = queue.Queue(maxsize=1)
         self._error: BaseException | None = None
-        self._thread = threading.Thread(target=self._work, name="checkpoint-writer", daemon=True)
+        work = at_priority(self._work, nice)
+        self._thread = threading.Thread(target=work, name="checkpoint-writer", daemon=True)
         self._thread.start()
 
     def submit(self, taken: dict) -> None:

@@ -25,7 +25,6 @@ import shutil
 import signal
 import time
 from collections.abc import Sequence
-from dataclasses import dataclass
 from pathlib import Path
 
 from tqdm import tqdm
@@ -45,23 +44,11 @@ from neuralfeels_sem.pipeline.pace import PerceivedFrame, StreamEnd
 from neuralfeels_sem.pipeline.producer import FrameProducer
 from neuralfeels_sem.pipeline.run_outputs import write_snapshot
 from neuralfeels_sem.pipeline.segments import Segment, load_segments, run_totals
+from neuralfeels_sem.pipeline.session_settings import SessionSettings
 from neuralfeels_sem.sensors.base import Sensor
 from neuralfeels_sem.utils.atomic import atomic_write
 
 log = logging.getLogger(__name__)
-
-
-@dataclass
-class SessionSettings:
-    """A session's cadences, lag bound, checkpoint storage and producer threads, from the
-    config (eval.*, mapping.*, viz.*), where their defaults live."""
-
-    every_k_frames: int
-    checkpoint_every: int  # 0: only the final checkpoint
-    progression_snapshots: int
-    max_lag_s: float  # read at sensor.pace=realtime
-    checkpoint_storage: str  # mapping.checkpoint_storage (checkpoint_codec.py)
-    acquire_thread: bool  # mapping.acquire_thread (producer.py)
 
 
 class MappingSession:
@@ -123,7 +110,7 @@ class MappingSession:
         baseline = self._floors()
         self.last_index = self._resume(resume) if resume else -1
         frame_period = float(getattr(sensor, "frame_period_s", 0.0))
-        self.writer = CheckpointWriter(self.checkpoint_path)
+        self.writer = CheckpointWriter(self.checkpoint_path, self.settings.nice_at(sensor.pace))
         self.classifier.open()  # loaded before the clock starts (on a GPU: graph captures),
         self.mapper.points.load_models()  # in the order the first frame would load them
         try:
@@ -192,12 +179,12 @@ class MappingSession:
     def _loop(self, sensor: Sensor, wall_start: float) -> None:
         total = len(sensor) if len(sensor) > 0 else None
         snapshot_every = max(1, (total or 100) // max(1, self.settings.progression_snapshots))
-        points = self.mapper.points
+        points, nice = self.mapper.points, self.settings.nice_at(sensor.pace)
         producer = FrameProducer(sensor, self.classifier.classify, points.perceive, points.forget,
-                                 self.last_index, self.settings.acquire_thread)  # fmt: skip
+                                 self.last_index, self.settings.acquire_thread, nice)  # fmt: skip
         bar = tqdm(total=total, desc="map", unit="frame", dynamic_ncols=True)
         bar.update(self.last_index + 1)
-        self.background = BackgroundEval(self.scorer, self._write_snapshot)
+        self.background = BackgroundEval(self.scorer, self._write_snapshot, nice)
         producer.start()
         try:
             while not self.stop.requested:

@@ -24,6 +24,7 @@ from collections.abc import Callable, Iterator
 
 from neuralfeels_sem.core.frame import Frame
 from neuralfeels_sem.pipeline.pace import FrameQueue, PaceClock, PerceivedFrame, StreamEnd
+from neuralfeels_sem.pipeline.thread_priority import at_priority
 from neuralfeels_sem.sensors.base import Sensor
 from neuralfeels_sem.utils.gl_thread import release_thread_gl
 
@@ -54,6 +55,7 @@ class FrameProducer:
         after_index: frames up to this index are already mapped (a resumed run).
         acquire_thread: acquire frames in a thread of their own, one frame ahead of
             classification and perception (False: one thread does both in turn).
+        nice: added to the threads' nice value (thread_priority.py; 0: as the mapper's).
     """
 
     def __init__(
@@ -64,6 +66,7 @@ class FrameProducer:
         forget: Callable[[Frame], None],
         after_index: int = -1,
         acquire_thread: bool = False,
+        nice: int = 0,
     ) -> None:
         self.sensor = sensor
         self.classify = classify
@@ -82,11 +85,13 @@ class FrameProducer:
         self._acquired: queue.Queue | None = queue.Queue(maxsize=1) if acquire_thread else None
         self._streaming = threading.Event()  # set when the first frame is perceived
         self._handed_any = False  # the acquisition thread has handed over a frame
-        self._threads = [threading.Thread(target=self._run, name="frame-producer", daemon=True)]
+        stages = [(self._run, "frame-producer")]
         if acquire_thread:
-            self._threads.append(
-                threading.Thread(target=self._acquire, name="frame-acquire", daemon=True)
-            )
+            stages.append((self._acquire, "frame-acquire"))
+        self._threads = [
+            threading.Thread(target=at_priority(run, nice), name=name, daemon=True)
+            for run, name in stages
+        ]
 
     def start(self) -> None:
         if self.realtime:

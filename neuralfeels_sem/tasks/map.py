@@ -28,13 +28,14 @@ from neuralfeels_sem.eval.oracles import oracles_used
 from neuralfeels_sem.mapping.pose_source import build_pose_source
 from neuralfeels_sem.mapping.pose_tracker import TrackerConfig
 from neuralfeels_sem.pipeline.interrupts import Interrupted
-from neuralfeels_sem.pipeline.mapping_session import MappingSession, SessionSettings
+from neuralfeels_sem.pipeline.mapping_session import MappingSession
 from neuralfeels_sem.pipeline.run_outputs import (
     load_avg,
     machine_info,
     write_metrics,
     write_touches,
 )
+from neuralfeels_sem.pipeline.session_settings import SessionSettings
 from neuralfeels_sem.pipeline.touch_advisor import TouchAdvisorConfig, touch_advisors
 from neuralfeels_sem.sensors.factory import build_sensor
 from neuralfeels_sem.tasks.build import (
@@ -122,6 +123,7 @@ def build_session(
         max_lag_s=float(cfg.mapping.max_lag_s),
         checkpoint_storage=str(cfg.mapping.checkpoint_storage),
         acquire_thread=bool(cfg.mapping.acquire_thread),
+        helper_nice=int(cfg.mapping.helper_nice),
     )
     return MappingSession(
         mapper,

@@ -168,3 +168,25 @@ def test_the_acquisition_thread_makes_no_offline_run_another_setting() -> None:
     assert drift(realtime, {"sensor.pace": "realtime"}, today) == {
         "mapping.acquire_thread": (False, True)
     }
+
+
+def test_runs_before_the_cpu_runtime_setting_read_as_run_in_torch() -> None:
+    """The networks ran in torch until cpu_runtime came, with onnxruntime as its default."""
+    today = {
+        "classifier.cuda_graphs": True,
+        "classifier.cpu_runtime": "onnxruntime",
+        "mapping.mapper.tactile_depth.min_contact_px": 150,
+        "mapping.mapper.tactile_depth.cpu_runtime": "onnxruntime",
+    }
+    before = {
+        "classifier": {"cuda_graphs": True},
+        "mapping": {"mapper": {"tactile_depth": {"min_contact_px": 150}}},
+    }
+    assert drift(before, {}, today) == {
+        "classifier.cpu_runtime": ("torch", "onnxruntime"),
+        "mapping.mapper.tactile_depth.cpu_runtime": ("torch", "onnxruntime"),
+    }
+    classifier_now = {"cuda_graphs": True, "cpu_runtime": "onnxruntime"}
+    depth_now = {"min_contact_px": 150, "cpu_runtime": "onnxruntime"}
+    now = {"classifier": classifier_now, "mapping": {"mapper": {"tactile_depth": depth_now}}}
+    assert drift(now, {}, today) == {}

@@ -147,8 +147,12 @@ def test_load_reads_the_network_only_for_the_net_source() -> None:
     net.load()
     gt.load()
     assert net.net._model is not None and gt.net._model is None
-    # On the CPU the forward runs as it is (graphs are for CUDA devices).
-    assert type(net.net._forward).__name__ == "FullResolution"
+    # On the CPU the forward runs through ONNX Runtime, or as it is with cpu_runtime=torch
+    # (graphs are for CUDA devices).
+    assert type(net.net._forward).__name__ == "OnnxModule"
+    eager = TactileDepth(TactileDepthConfig("net", cpu_runtime="torch"))
+    eager.load()
+    assert type(eager.net._forward).__name__ == "FullResolution"
 
 
 def test_net_source_without_a_background_is_a_data_error() -> None:

@@ -34,6 +34,7 @@ from neuralfeels_sem.perception.classifier.patches import (
 from neuralfeels_sem.perception.classifier.predict import predict_probs
 from neuralfeels_sem.perception.classifier.transforms import preprocess, resize_batch
 from neuralfeels_sem.perception.contact import ContactGate, edge_share
+from neuralfeels_sem.perception.onnx_cpu import check_cpu_runtime
 from neuralfeels_sem.perception.touch import NO_LABEL, TouchLabel
 from neuralfeels_sem.utils.device import resolve_device
 from neuralfeels_sem.utils.paths import ASSETS_DIR
@@ -70,6 +71,8 @@ class MaterialClassifier:
     patch_disagree_confidence: a patch naming another material than the touch's (centre)
         label needs at least this confidence, else it abstains (below min_confidence: off).
     cuda_graphs: on a GPU, replay the forward from CUDA graphs (perception/graphed.py).
+    cpu_runtime: on the CPU, `onnxruntime` (about twice as fast, perception/onnx_cpu.py) or
+        `torch` (the traced model, bit-identical to the eager one).
     """
 
     def __init__(
@@ -97,6 +100,7 @@ class MaterialClassifier:
         patch_min_contact: float = 0.0,
         patch_disagree_confidence: float = 0.0,
         cuda_graphs: bool = True,
+        cpu_runtime: str = "onnxruntime",
     ) -> None:
         if not 0.0 <= min_confidence <= 1.0:
             raise ValueError(f"min_confidence={min_confidence} must be in [0, 1]")
@@ -124,6 +128,8 @@ class MaterialClassifier:
             patch_spacing_px, max_patches, patch_probe, patch_min_contact, patch_disagree_confidence
         )
         self.cuda_graphs = bool(cuda_graphs)
+        check_cpu_runtime("classifier.cpu_runtime", cpu_runtime)
+        self.cpu_runtime = cpu_runtime
         self._backgrounds: dict[str, np.ndarray] = {}
         self._model: torch.nn.Module | None = None
         self._ckpt: ClassifierCheckpoint | None = None
@@ -188,9 +194,8 @@ class MaterialClassifier:
                 "set materials to match or train a classifier for these classes"
             )
         self._device = resolve_device(self.device_name)
-        self._model = inference_model(
-            lambda: ckpt.build(self._device), ckpt.input_size, self._device, self.cuda_graphs, path
-        )
+        self._model = inference_model(lambda: ckpt.build(self._device), ckpt.input_size,
+                                      self._device, self.cuda_graphs, path, self.cpu_runtime)  # fmt: skip
         self._ckpt = ckpt
         if self.background_dir is not None:
             self._load_backgrounds()

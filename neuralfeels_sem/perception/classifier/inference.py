@@ -11,6 +11,7 @@ from torch import nn
 from neuralfeels_sem.perception.classifier.model import fold_batch_norms, fold_same_padding
 from neuralfeels_sem.perception.classifier.traced_cache import cached_trace
 from neuralfeels_sem.perception.graphed import GraphedModel
+from neuralfeels_sem.perception.onnx_cpu import OnnxModule, onnx_module
 
 
 def inference_model(
@@ -19,12 +20,16 @@ def inference_model(
     device: torch.device,
     cuda_graphs: bool,
     source: Path,
-) -> nn.Module:
+    cpu_runtime: str = "onnxruntime",
+) -> nn.Module | OnnxModule:
     """The model of checkpoint file `source` (`build()`: eval mode, on `device`) for
-    inference only: batch norms and symmetric paddings folded, then traced and frozen on
-    the CPU (cached by `source`'s content, traced_cache.py) or replayed from CUDA graphs
-    on a GPU (`cuda_graphs`, perception/graphed.py). The same outputs either way (to the
-    bit on the CPU; the GPU within its own rounding)."""
+    inference only, batch norms and symmetric paddings folded. On the CPU: exported to
+    ONNX Runtime (`cpu_runtime=onnxruntime`, perception/onnx_cpu.py; outputs within float
+    rounding) or traced and frozen (`torch`, traced_cache.py; to the bit), either cached
+    by `source`'s content; on a GPU replayed from CUDA graphs (`cuda_graphs`,
+    perception/graphed.py; within the GPU's own rounding)."""
+    if device.type == "cpu" and cpu_runtime == "onnxruntime":
+        return onnx_module(source, lambda: _folded(build()), (3, input_size, input_size))
     if device.type == "cpu":
         return cached_trace(source, input_size, lambda: _folded(build()))
     model = _folded(build())

@@ -10,6 +10,7 @@ from torch import nn
 
 from neuralfeels_sem.core.errors import DataError
 from neuralfeels_sem.perception.graphed import GraphedModel
+from neuralfeels_sem.perception.onnx_cpu import OnnxModule, check_cpu_runtime, onnx_module
 from neuralfeels_sem.perception.tactile_depth_net.checkpoint import load_checkpoint
 from neuralfeels_sem.perception.tactile_depth_net.model import (
     TactileDepthNet,
@@ -46,6 +47,8 @@ class DepthNetPredictor:
         device: where the network runs (the run's `device`).
         cuda_graphs: on a GPU, replay the forward from CUDA graphs (perception/graphed.py),
             captured when the checkpoint is loaded; false: eager.
+        cpu_runtime: on the CPU, `onnxruntime` (perception/onnx_cpu.py: about half the time
+            a frame, depth within float rounding) or `torch` (eager).
     """
 
     def __init__(
@@ -54,13 +57,16 @@ class DepthNetPredictor:
         min_contact_px: int = 150,
         device: str | torch.device = "cpu",
         cuda_graphs: bool = True,
+        cpu_runtime: str = "onnxruntime",
     ) -> None:
         self.path = Path(checkpoint).expanduser() if checkpoint else SHIPPED_CHECKPOINT
         self.min_contact_px = int(min_contact_px)
         self.device = torch.device(device)
         self.cuda_graphs = bool(cuda_graphs)
+        check_cpu_runtime("tactile_depth.cpu_runtime", cpu_runtime)
+        self.cpu_runtime = cpu_runtime
         self._model: TactileDepthNet | None = None
-        self._forward: FullResolution | GraphedModel | None = None
+        self._forward: FullResolution | GraphedModel | OnnxModule | None = None
         self.input_size: tuple[int, int] | None = None
 
     def load(self) -> TactileDepthNet:
@@ -76,6 +82,10 @@ class DepthNetPredictor:
             self._model.to(self.device)
             self.input_size = ckpt.input_size
             self._forward = FullResolution(self._model).eval()
+            if self.device.type == "cpu" and self.cpu_runtime == "onnxruntime":
+                forward = self._forward  # already built: export it as it is
+                shape = (3, *self.input_size)
+                self._forward = onnx_module(self.path, lambda: forward, shape, outputs=2)
             if self.cuda_graphs and self.device.type == "cuda":
                 self._forward = GraphedModel(self._forward, GRAPH_BUCKETS)
                 self._forward.capture((3, *self.input_size), self.device)

@@ -1,0 +1,24 @@
+"""A mapping session's cadences, lag bound, checkpoint storage and helper threads."""
+
+from __future__ import annotations
+
+from dataclasses import dataclass
+
+
+@dataclass
+class SessionSettings:
+    """From the config (eval.*, mapping.*, viz.*), where their defaults live; tasks/map.py
+    fills it."""
+
+    every_k_frames: int
+    checkpoint_every: int  # 0: only the final checkpoint
+    progression_snapshots: int
+    max_lag_s: float  # read at sensor.pace=realtime
+    checkpoint_storage: str  # mapping.checkpoint_storage (checkpoint_codec.py)
+    acquire_thread: bool  # mapping.acquire_thread (producer.py)
+    helper_nice: int  # mapping.helper_nice (thread_priority.py), read at sensor.pace=offline
+
+    def nice_at(self, pace: str) -> int:
+        """What the helper threads add to their nice value at this pace: at realtime the
+        producer keeps the sensor's clock and takes its share of the cores."""
+        return self.helper_nice if pace == "offline" else 0
