@@ -54,7 +54,7 @@ class MappingConfig:
     # At sensor.pace=offline the mapper is the loop's critical path: the producer, scoring
     # and checkpoint threads add this to their nice value so that the mapper gets a core
     # first (pipeline/thread_priority.py; Linux; 0: an equal share). On the 2-core CPU the
-    # default run's loop took 79-85 s against 94-98 (the same map; docs/usage.md).
+    # default run's loop took 73.0 s against 75.5-80.8 (the same map; docs/usage.md).
     helper_nice: int = 10
     # How checkpoint.pt stores the hash tables (mapping/checkpoint_codec.py): auto = exact
     # float32 while that fits 40 MB, else compact (float16 table, 8-bit Adam moments);

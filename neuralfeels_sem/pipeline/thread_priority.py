@@ -6,8 +6,8 @@ is the mapper's. On two cores, though, the mapper shares them with the acquisiti
 perception, evaluation and checkpoint threads, and the kernel's fair scheduler gives each
 runnable thread an equal share, so the mapper ran for two thirds of the loop's wall time
 and waited for a core the rest. A helper thread with a higher nice value still runs
-whenever a core is free, but yields it to the mapper when both want one
-(docs/field_and_mapper.md#cost has the measurement).
+whenever a core is free, but yields it to the mapper when both want one (the measurement:
+docs/usage.md#pace-offline-and-realtime).
 
 Linux only: there a thread's nice value is its own (setpriority on its thread id); on other
 systems the setting changes nothing. The value is added to the thread's current one
