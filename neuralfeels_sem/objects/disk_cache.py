@@ -10,14 +10,13 @@ from __future__ import annotations
 
 import hashlib
 import logging
-import os
-import tempfile
 import zipfile
 from pathlib import Path
 
 import numpy as np
 
 from neuralfeels_sem.utils import paths
+from neuralfeels_sem.utils.atomic import atomic_path
 
 log = logging.getLogger(__name__)
 
@@ -53,9 +52,7 @@ def save(path: Path, arrays: dict[str, np.ndarray]) -> None:
     """Write atomically (temp file + rename), so parallel jobs never read half a file."""
     try:
         path.parent.mkdir(parents=True, exist_ok=True)
-        fd, tmp = tempfile.mkstemp(dir=path.parent, suffix=".tmp")
-        with os.fdopen(fd, "wb") as f:
+        with atomic_path(path) as tmp, open(tmp, "wb") as f:
             np.savez(f, **arrays)
-        os.replace(tmp, path)
     except OSError as exc:  # read-only install, full disk: caching is optional
         log.warning("could not cache object at %s (%s)", path, exc)

@@ -19,7 +19,6 @@ import contextlib
 import hashlib
 import io
 import logging
-import os
 import tempfile
 import warnings
 from collections.abc import Callable, Sequence
@@ -31,6 +30,7 @@ import torch
 from torch import nn
 
 from neuralfeels_sem.core.errors import ConfigError
+from neuralfeels_sem.utils.atomic import atomic_path
 from neuralfeels_sem.utils.paths import cache_dir
 
 log = logging.getLogger(__name__)
@@ -120,8 +120,7 @@ def _name(source: Path, input_shape: Sequence[int]) -> str:
 
 
 def _export(model: nn.Module, input_shape: Sequence[int], outputs: int, path: Path) -> None:
-    """Export with a dynamic batch axis, written atomically under a name of this process's
-    own (test workers may race)."""
+    """Export with a dynamic batch axis, written atomically (utils/atomic.py)."""
     try:
         import onnx  # noqa: F401  (torch's exporter needs it)
     except ImportError as exc:
@@ -132,14 +131,9 @@ def _export(model: nn.Module, input_shape: Sequence[int], outputs: int, path: Pa
     names = [f"out{i}" for i in range(outputs)]
     axes = {name: {0: "batch"} for name in ["x", *names]}
     example = torch.zeros(2, *input_shape)
-    fd, tmp = tempfile.mkstemp(dir=path.parent, suffix=".tmp")
-    os.close(fd)
-    try:
-        # The TorchScript-based exporter warns that it is deprecated and prints its notes.
-        with warnings.catch_warnings(), contextlib.redirect_stdout(io.StringIO()):
-            warnings.simplefilter("ignore")
-            torch.onnx.export(model, (example,), tmp, dynamo=False, input_names=["x"],
+    # The TorchScript-based exporter warns that it is deprecated and prints its notes.
+    with atomic_path(path) as tmp, warnings.catch_warnings():
+        warnings.simplefilter("ignore")
+        with contextlib.redirect_stdout(io.StringIO()):
+            torch.onnx.export(model, (example,), str(tmp), dynamo=False, input_names=["x"],
                               output_names=names, dynamic_axes=axes, opset_version=OPSET)  # fmt: skip
-        os.replace(tmp, path)
-    finally:
-        Path(tmp).unlink(missing_ok=True)

@@ -4,6 +4,7 @@ one, never half of one."""
 from __future__ import annotations
 
 import os
+import tempfile
 from collections.abc import Iterator
 from contextlib import contextmanager
 from pathlib import Path
@@ -32,6 +33,23 @@ def atomic_write(path: str | Path, mode: str = "w", newline: str | None = None) 
     except BaseException:
         tmp.unlink(missing_ok=True)
         raise
+
+
+@contextmanager
+def atomic_path(path: str | Path) -> Iterator[Path]:
+    """A temporary file name beside `path`, of this process's own, for writers that take a
+    name (torch.save, torch.onnx.export) or open the file themselves; renamed over `path`
+    on a clean exit, removed otherwise. Unlike atomic_write's fixed `<path>.tmp`, parallel
+    writers of one file (test workers, sweep jobs) never share it. Raises OSError where the
+    folder is not writable."""
+    path = Path(path)
+    fd, tmp = tempfile.mkstemp(dir=path.parent, suffix=".tmp")
+    os.close(fd)
+    try:
+        yield Path(tmp)
+        os.replace(tmp, path)
+    finally:
+        Path(tmp).unlink(missing_ok=True)
 
 
 def atomic_write_text(path: str | Path, text: str) -> None:

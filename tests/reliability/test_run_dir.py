@@ -14,7 +14,7 @@ from neuralfeels_sem.core.errors import ConfigError
 from neuralfeels_sem.pipeline.interrupts import Interrupted, StopOnSignal
 from neuralfeels_sem.pipeline.segments import Segment, run_totals
 from neuralfeels_sem.tasks.run_guard import check_run_dir
-from neuralfeels_sem.utils.atomic import atomic_write, atomic_write_text
+from neuralfeels_sem.utils.atomic import atomic_path, atomic_write, atomic_write_text
 from neuralfeels_sem.utils.run_lock import LOCK_NAME, RunLock
 from tests.reliability.checks import tree_digest
 
@@ -117,6 +117,21 @@ def test_a_failed_atomic_write_keeps_the_old_file(tmp_path: Path) -> None:
     assert tree_digest(tmp_path) == before  # same content, no temporary left
     atomic_write_text(path, '{"frames": 6}')
     assert path.read_text() == '{"frames": 6}' and sorted(os.listdir(tmp_path)) == ["metrics.json"]
+
+
+def test_atomic_paths_are_private_and_a_failed_write_keeps_the_old_file(tmp_path: Path) -> None:
+    """Two writers of one file get their own temporary names (test workers may race)."""
+    path = tmp_path / "model.onnx"
+    path.write_bytes(b"old")
+    with atomic_path(path) as first, atomic_path(path) as second:
+        assert first != second and first.parent == second.parent == tmp_path
+        first.write_bytes(b"first")
+        second.write_bytes(b"second")
+    assert path.read_bytes() == b"first"  # the outer writer finished last
+    with pytest.raises(RuntimeError), atomic_path(path) as tmp:
+        tmp.write_bytes(b"half")
+        raise RuntimeError("killed mid-write")
+    assert path.read_bytes() == b"first" and sorted(os.listdir(tmp_path)) == ["model.onnx"]
 
 
 @pytest.mark.parametrize("signum", [signal.SIGINT, signal.SIGTERM])

@@ -11,8 +11,6 @@ from __future__ import annotations
 
 import hashlib
 import logging
-import os
-import tempfile
 import warnings
 from collections.abc import Callable
 from pathlib import Path
@@ -21,6 +19,7 @@ import torch
 from torch import nn
 
 from neuralfeels_sem.perception.classifier.model import trace_for_cpu, warm_up
+from neuralfeels_sem.utils.atomic import atomic_path
 from neuralfeels_sem.utils.paths import cache_dir
 
 log = logging.getLogger(__name__)
@@ -53,16 +52,10 @@ def _name(source: Path, input_size: int) -> str:
 
 
 def _save(model: torch.jit.ScriptModule, path: Path) -> None:
-    """Write atomically under a name of this process's own (test workers may race)."""
+    """Write atomically (utils/atomic.py: test workers may race)."""
     try:
-        fd, tmp = tempfile.mkstemp(dir=path.parent, suffix=".tmp")
-        os.close(fd)
-        try:
-            with warnings.catch_warnings():
-                warnings.simplefilter("ignore", DeprecationWarning)
-                torch.jit.save(model, tmp)
-            os.replace(tmp, path)
-        finally:
-            Path(tmp).unlink(missing_ok=True)
+        with atomic_path(path) as tmp, warnings.catch_warnings():
+            warnings.simplefilter("ignore", DeprecationWarning)
+            torch.jit.save(model, str(tmp))
     except OSError as exc:  # a read-only checkout: trace again next time
         log.warning("could not cache the traced classifier at %s (%s)", path, exc)
