@@ -45,6 +45,11 @@ class MappingConfig:
     # world by more; room for one mapped frame plus its perception on the 2-core CPU under
     # load (docs/usage.md).
     max_lag_s: float = 2.0
+    # At sensor.pace=realtime: the touches of up to this many frames overtaken before each
+    # frame the mapper takes are still mapped (classified, placed and fused; no camera, no
+    # optimiser steps; pipeline/touch_frames.py): touches are the scarce source. 0: they
+    # are lost with their frames. In simulation each costs rendering its DIGITs.
+    overtaken_touch_frames: int = 4
     # Acquisition (rendering in sim, device reads on a rig) in a thread of its own, one
     # frame ahead of classification and perception (pipeline/producer.py); false: one
     # producer thread does both in turn. On the 2-core CPU, with the mapper's step as
@@ -79,6 +84,11 @@ class MappingConfig:
             )
         if not 0.0 < self.max_lag_s <= 3600.0:
             raise ValueError(f"mapping.max_lag_s={self.max_lag_s} must be in (0, 3600] seconds")
+        if self.overtaken_touch_frames < 0:
+            raise ValueError(
+                f"mapping.overtaken_touch_frames={self.overtaken_touch_frames} must be >= 0 "
+                "(0: lost with their frames)"
+            )
 
 
 def register(cs) -> None:

@@ -81,6 +81,9 @@ class Frame:
     camera: CameraReading | None = None
     gt_world_T_object: np.ndarray | None = None  # sim ground truth, kept even when tracking
     joint_positions: np.ndarray | None = None  # (16,) hand joints in radians, when known
+    # sensor.pace=realtime: a frame overtaken by a newer one before the mapper could take
+    # it, made for its touches alone (no camera reading; pipeline/producer.py).
+    touches_only: bool = False
 
     def __post_init__(self) -> None:
         check_pose(self.world_T_object, "world_T_object")

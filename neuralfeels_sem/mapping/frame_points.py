@@ -175,12 +175,21 @@ class PointExtractor:
             else:
                 masked = dataclasses.replace(reading, mask=mask)
                 out["camera"] = camera_points(masked, world_T_object, mask is not None)
-        depths = self.contact_depths(frame)
+        out.update(self.touch_points(frame, world_T_object))
+        return out, every
+
+    def touch_points(
+        self, frame: Frame, world_T_object: np.ndarray, depths: dict | None = None
+    ) -> dict[str, np.ndarray]:
+        """The contact points per finger (none for a finger out of contact); `depths`: the
+        frame's contact depths when already read (`contact_depths`)."""
+        depths = self.contact_depths(frame) if depths is None else depths
+        out = {}
         for finger, tactile in frame.tactile.items():
             pts = tactile_points(tactile, depths[finger], world_T_object)
             if len(pts):
                 out[finger] = pts
-        return out, every
+        return out
 
     def contact_depths(self, frame: Frame) -> dict[str, np.ndarray]:
         """Each finger's contact depth from `tactile_depth` (one batch per frame), scored

@@ -294,6 +294,23 @@ class OnlineMapper:
         self.log.warmed_up = True
         return self.optimize(steps)
 
+    def add_touches(
+        self,
+        frame: Frame,
+        touch_labels: Mapping[str, TouchLabel],
+        world_T_object: np.ndarray,
+        depths: dict[str, np.ndarray] | None = None,
+    ) -> int:
+        """Ingest only the touches of a frame not mapped itself (sensor.pace=realtime:
+        pipeline/touch_frames.py), without optimiser steps; how many points were kept.
+        `depths`: its contact depths when already read (PointExtractor.contact_depths)."""
+        if not np.isfinite(world_T_object).all():
+            raise NumericalError(f"the object pose for frame {frame.index}'s touches is not finite")
+        points = self.points.touch_points(frame, world_T_object, depths)
+        _, tactile = self.memory.add(frame, points, None, world_T_object, touch_labels)
+        self.log.tactile_points_total += tactile
+        return tactile
+
     def _policy_steps(self, points: dict[str, np.ndarray], labels: Mapping[str, TouchLabel]) -> int:
         config = self.config
         if not self.log.warmed_up:

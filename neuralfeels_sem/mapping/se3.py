@@ -66,3 +66,12 @@ def constant_velocity(poses: list[np.ndarray]) -> np.ndarray:
         return poses[-1].copy()
     step = invert_pose(poses[-2]) @ poses[-1]
     return orthonormalize_pose(poses[-1] @ step)
+
+
+def interpolate_pose(start: np.ndarray, end: np.ndarray, share: float) -> np.ndarray:
+    """The pose `share` of the way from `start` to `end` (0: start, 1: end) along the
+    constant body-frame motion between them (geodesic on SE(3); rotations below pi)."""
+    if not 0.0 <= share <= 1.0:
+        raise ValueError(f"share={share} must be in [0, 1]")
+    motion = se3_log(invert_pose(start) @ end)
+    return orthonormalize_pose(start @ se3_exp(share * motion))

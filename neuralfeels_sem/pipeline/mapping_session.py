@@ -45,6 +45,7 @@ from neuralfeels_sem.pipeline.producer import FrameProducer
 from neuralfeels_sem.pipeline.run_outputs import write_snapshot
 from neuralfeels_sem.pipeline.segments import Segment, load_segments, run_totals
 from neuralfeels_sem.pipeline.session_settings import SessionSettings
+from neuralfeels_sem.pipeline.touch_frames import OvertakenTouches
 from neuralfeels_sem.sensors.base import Sensor
 from neuralfeels_sem.utils.atomic import atomic_write
 
@@ -94,6 +95,7 @@ class MappingSession:
         self.last_index = -1
         self.failure: BaseException | None = None  # the producer's error, if it failed
         self.background: BackgroundEval | None = None  # scoring off the mapper's path
+        self.overtaken = OvertakenTouches(self.settings.overtaken_touch_frames > 0)
         self.writer: CheckpointWriter | None = None  # checkpoint writes off the mapper's path
         self.stop = StopOnSignal(out)
         self.checkpoint_path, self.snapshots_dir = out / "checkpoint.pt", out / "progression"
@@ -181,7 +183,8 @@ class MappingSession:
         snapshot_every = max(1, (total or 100) // max(1, self.settings.progression_snapshots))
         points, nice = self.mapper.points, self.settings.nice_at(sensor.pace)
         producer = FrameProducer(sensor, self.classifier.classify, points.perceive, points.forget,
-                                 self.last_index, self.settings.acquire_thread, nice)  # fmt: skip
+                                 self.last_index, self.settings.acquire_thread, nice,
+                                 self.settings.overtaken_touch_frames)  # fmt: skip
         bar = tqdm(total=total, desc="map", unit="frame", dynamic_ncols=True)
         bar.update(self.last_index + 1)
         self.background = BackgroundEval(self.scorer, self._write_snapshot, nice)
@@ -249,7 +252,8 @@ class MappingSession:
         lag = producer.clock.lag(item.frame.index)
         if lag > self.settings.max_lag_s:
             self.segment.frames_dropped += 1
-            self.mapper.points.forget(item.frame)
+            if not self.overtaken.carry(item):
+                self.mapper.points.forget(item.frame)
             return True
         self.segment.add_lag(max(0.0, lag))
         return False
@@ -285,7 +289,8 @@ class MappingSession:
         """Map one frame, then score, snapshot and checkpoint where their cadence falls."""
         frame, previous = item.frame, self.last_index
         # Realtime: no warm-up block (the world does not wait); idle steps make up for it.
-        self._add(frame, item.labels, self.mapper.config.steps_per_frame if realtime else None)
+        steps = self.mapper.config.steps_per_frame if realtime else None
+        self._add(frame, item.labels, steps, item.touches)
         is_last = total is not None and frame.index == total - 1
 
         def crossed(every: int) -> bool:  # a multiple of `every` reached (or passed: realtime)
@@ -305,12 +310,15 @@ class MappingSession:
             self._drain_background(bar)  # the checkpoint records the scorer's curves
             self._checkpoint()
 
-    def _add(self, frame: Frame, labels: dict, steps: int | None) -> None:
+    def _add(self, frame: Frame, labels: dict, steps: int | None, touches: list = ()) -> None:
         """Log the frame's classified touches, estimate its pose and give it to the mapper
-        (`steps`: see OnlineMapper.add_frame) unless the pose source does not trust it."""
+        (`steps`: see OnlineMapper.add_frame), after the `touches` riding with it
+        (touch_frames.py), unless the pose source does not trust it."""
         self.scorer.log_touches(frame, labels)
+        riding = self.overtaken.take(self.mapper.points, touches)
         world_T_object = self.pose_source.estimate(frame, self.mapper)
         if self.pose_source.fuse:
+            self.segment.touch_frames += self.overtaken.add(self, riding, frame, world_T_object)
             self.mapper.add_frame(frame, labels, world_T_object=world_T_object, steps=steps)
         else:  # its pose was not tracked: the field learns on, but not from this frame
             self.mapper.optimize(self.mapper.config.steps_per_frame if steps is None else steps)

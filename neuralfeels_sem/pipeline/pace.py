@@ -17,7 +17,7 @@ import threading
 import time
 from collections import deque
 from collections.abc import Callable
-from dataclasses import dataclass
+from dataclasses import dataclass, field
 
 from neuralfeels_sem.core.frame import Frame
 
@@ -55,11 +55,19 @@ class PerceivedFrame:
     """A frame ready for the mapper: its touches classified and its perception done.
 
     `dropped_before`: frames dropped since the previous item the producer handed over.
+    `touches`: (frame, labels) of earlier frames the mapper did not take, whose touches
+    alone are to be mapped first, oldest first (sensor.pace=realtime).
     """
 
     frame: Frame
     labels: dict
     dropped_before: int = 0
+    touches: list[tuple[Frame, dict]] = field(default_factory=list)
+
+
+def in_contact(labels: dict) -> bool:
+    """Whether any finger of a frame touched (its labels: finger -> TouchLabel)."""
+    return any(label.contact for label in labels.values())
 
 
 @dataclass
@@ -75,17 +83,24 @@ class FrameQueue:
 
     `keep_newest` False (offline): `put` waits for room, so every frame reaches the mapper.
     `keep_newest` True (realtime): `put` never waits; a full queue lets go of its oldest
-    frame (`on_drop` is told), whose count travels with the newer one.
+    frame (`on_drop` is told), whose count travels with the newer one. With `keep_touches`
+    its touches travel too (and those it carried), to be mapped before the newer frame; only
+    a frame let go without a touch is given to `on_drop`.
     """
 
     def __init__(
-        self, capacity: int, keep_newest: bool, on_drop: Callable[[Frame], None] = lambda f: None
+        self,
+        capacity: int,
+        keep_newest: bool,
+        on_drop: Callable[[Frame], None] = lambda f: None,
+        keep_touches: bool = False,
     ) -> None:
         if capacity < 1:
             raise ValueError(f"capacity={capacity} must be >= 1")
         self.capacity = capacity
         self.keep_newest = keep_newest
         self.on_drop = on_drop
+        self.keep_touches = keep_touches
         self._items: deque = deque()
         self._ended = False
         self._cond = threading.Condition()
@@ -100,7 +115,11 @@ class FrameQueue:
             if len(self._items) >= self.capacity:
                 old = self._items.popleft()
                 item.dropped_before += old.dropped_before + 1
-                self.on_drop(old.frame)
+                keep = self.keep_touches and in_contact(old.labels)
+                kept = [(old.frame, old.labels)] if keep else []
+                item.touches[:0] = old.touches + kept
+                if not kept:
+                    self.on_drop(old.frame)
             self._items.append(item)
             self._cond.notify_all()
         return not stop.is_set()

@@ -23,7 +23,13 @@ import time
 from collections.abc import Callable, Iterator
 
 from neuralfeels_sem.core.frame import Frame
-from neuralfeels_sem.pipeline.pace import FrameQueue, PaceClock, PerceivedFrame, StreamEnd
+from neuralfeels_sem.pipeline.pace import (
+    FrameQueue,
+    PaceClock,
+    PerceivedFrame,
+    StreamEnd,
+    in_contact,
+)
 from neuralfeels_sem.pipeline.thread_priority import at_priority
 from neuralfeels_sem.sensors.base import Sensor
 from neuralfeels_sem.utils.gl_thread import release_thread_gl
@@ -56,6 +62,10 @@ class FrameProducer:
         acquire_thread: acquire frames in a thread of their own, one frame ahead of
             classification and perception (False: one thread does both in turn).
         nice: added to the threads' nice value (thread_priority.py; 0: as the mapper's).
+        touch_frames: realtime: the touches of up to this many frames overtaken before each
+            frame made are kept (mapping.overtaken_touch_frames): the sensor makes them
+            without their camera reading, they are classified and their contact depths
+            inferred, and those with a contact ride with the next frame to the mapper.
     """
 
     def __init__(
@@ -67,14 +77,18 @@ class FrameProducer:
         after_index: int = -1,
         acquire_thread: bool = False,
         nice: int = 0,
+        touch_frames: int = 0,
     ) -> None:
         self.sensor = sensor
         self.classify = classify
         self.perceive = perceive
         self.realtime = sensor.pace == "realtime"
         self.after_index = after_index
+        self.touch_frames = touch_frames if self.realtime else 0
         capacity = 1 if self.realtime else OFFLINE_QUEUE
-        self.queue = FrameQueue(capacity, keep_newest=self.realtime, on_drop=forget)
+        self.queue = FrameQueue(
+            capacity, self.realtime, on_drop=forget, keep_touches=self.touch_frames > 0
+        )
         self.clock: PaceClock | None = None
         self._stop = threading.Event()
         self.cpu_s = 0.0  # the threads' CPU seconds, added as each ends
@@ -117,7 +131,8 @@ class FrameProducer:
 
     def _sensor_frames(self, ready: Callable[[], None]) -> Iterator[Frame]:
         if self.clock is not None:
-            frames = self.sensor.frames_from_clock(lambda: self._next_due_index(ready))
+            due = lambda: self._next_due_index(ready)  # noqa: E731
+            frames = self.sensor.frames_from_clock(due, self.touch_frames)
         else:
             frames = (f for f in self.sensor.frames() if f.index > self.after_index)
         return self._timed(frames, "acquire")
@@ -150,6 +165,17 @@ class FrameProducer:
     def _mapper_ready(self) -> None:
         """Until the mapper has taken the last perceived frame."""
         self.queue.wait_empty(self._stop)
+
+    def _mapper_ready_or_touches(self) -> None:
+        """Until the mapper has taken the last perceived frame or a touches-only frame is
+        next in the hand-over."""
+        while not self._stop.is_set() and self.queue.ready() and not self._touches_next():
+            time.sleep(POLL_S / 10)
+
+    def _touches_next(self) -> bool:
+        with self._acquired.mutex:  # a look at the head, without taking it
+            head = self._acquired.queue[0] if self._acquired.queue else None
+        return isinstance(head, Frame) and head.touches_only
 
     def _perception_ready(self) -> None:
         """Until the perceiving thread has taken the last acquired frame, and the stream's
@@ -188,10 +214,11 @@ class FrameProducer:
 
     def _handed_over(self) -> Iterator[Frame]:
         """The acquired frames, in order; the acquisition's error is raised here. In
-        realtime a frame is taken only once the mapper has taken the last one."""
+        realtime a frame is taken only once the mapper has taken the last one (a frame made
+        for its touches alone, at once)."""
         while not self._stop.is_set():
             if self.clock is not None:
-                self._mapper_ready()
+                self._mapper_ready_or_touches()
             try:
                 item = self._acquired.get(timeout=POLL_S)
             except queue.Empty:
@@ -215,38 +242,58 @@ class FrameProducer:
 
     def _produce(self) -> None:
         dropped, expected, first = 0, self.after_index + 1, True
+        touches: list[tuple[Frame, dict]] = []  # touches-only frames since the last frame
         try:
             for frame in self._frames():
                 if self._stop.is_set():
                     return
+                if frame.touches_only:
+                    self._keep_touches(frame, touches)
+                    continue
                 if self.clock is not None:
                     dropped += max(0, frame.index - expected)  # overtaken, never made
                     self._stop.wait(max(0.0, -self.clock.lag(frame.index)))  # until it is due
                 expected = frame.index + 1
-                readings = list(frame.tactile.values())
-                cpu_start = time.thread_time()
-                labels = (
-                    {r.finger: lab for r, lab in zip(readings, self.classify(readings))}
-                    if readings
-                    else {}
-                )
-                cpu_classified = time.thread_time()
-                self.perceive(frame)
-                self._add_stage("classify", cpu_classified - cpu_start)
-                self._add_stage("perceive", time.thread_time() - cpu_classified)
+                labels = self._classify(frame)
+                self._perceive(frame)
                 if self.clock is not None and first:
                     self.clock.restart()  # the stream starts with its first frame ready
                 self._streaming.set()
                 first = False
-                if not self.queue.put(PerceivedFrame(frame, labels, dropped), self._stop):
+                item = PerceivedFrame(frame, labels, dropped, touches)
+                if not self.queue.put(item, self._stop):
                     return
-                dropped = 0
+                dropped, touches = 0, []
             self.queue.end(StreamEnd(dropped_before=dropped + self._tail(expected)))
         except BaseException as exc:  # noqa: BLE001 - handed to the mapper's side, which raises it
             self.queue.end(StreamEnd(error=exc))
         finally:
             self.queue.end(StreamEnd())  # a stop: no-op when the stream already ended
             release_thread_gl()
+
+    def _classify(self, frame: Frame) -> dict:
+        """finger -> TouchLabel of the frame's tactile readings (CPU time: stage classify)."""
+        readings = list(frame.tactile.values())
+        cpu_start = time.thread_time()
+        labels = (
+            {r.finger: lab for r, lab in zip(readings, self.classify(readings))} if readings else {}
+        )
+        self._add_stage("classify", time.thread_time() - cpu_start)
+        return labels
+
+    def _perceive(self, frame: Frame) -> None:
+        cpu_start = time.thread_time()
+        self.perceive(frame)
+        self._add_stage("perceive", time.thread_time() - cpu_start)
+
+    def _keep_touches(self, frame: Frame, touches: list[tuple[Frame, dict]]) -> None:
+        """A touches-only frame: classified, and with a contact its depths inferred and
+        kept for the next frame; without one it is let go."""
+        labels = self._classify(frame)
+        if not in_contact(labels):
+            return
+        self._perceive(frame)
+        touches.append((frame, labels))
 
     def _tail(self, expected: int) -> int:
         """Realtime: the frames after the last one made, overtaken by the end of the stream."""

@@ -27,6 +27,8 @@ class Segment:
     lag_sum_s: float = 0.0
     lag_max_s: float | None = None
     idle_steps: int = 0
+    # frames not mapped whose touches alone were (pipeline/touch_frames.py)
+    touch_frames: int = 0
     # CPU seconds of the frame producer's thread and of the mapper's (the session's) over
     # the loop: the one busy for most of `wall_s` is what bounds the realtime factor.
     producer_cpu_s: float = 0.0
@@ -74,6 +76,7 @@ def run_totals(segments: list[Segment], frame_period_s: float) -> dict:
         "lag_max_s": max(s.lag_max_s for s in lagged) if lagged else None,
         "lag_mean_s": sum(s.lag_sum_s for s in lagged) / lag_frames if lagged else None,
         "idle_steps": sum(s.idle_steps for s in segments),
+        "touch_frames": sum(s.touch_frames for s in segments),
         "producer_cpu_s": sum(s.producer_cpu_s for s in segments),
         "mapper_cpu_s": sum(s.mapper_cpu_s for s in segments),
         "producer_stage_cpu_s": _summed_stages(segments),

@@ -17,6 +17,7 @@ class SessionSettings:
     checkpoint_storage: str  # mapping.checkpoint_storage (checkpoint_codec.py)
     acquire_thread: bool  # mapping.acquire_thread (producer.py)
     helper_nice: int  # mapping.helper_nice (thread_priority.py), read at sensor.pace=offline
+    overtaken_touch_frames: int  # mapping.overtaken_touch_frames (touch_frames.py), realtime
 
     def nice_at(self, pace: str) -> int:
         """What the helper threads add to their nice value at this pace: at realtime the

@@ -6,6 +6,7 @@ instantiated in tests; `open()` connects to devices or builds the simulator.
 
 from __future__ import annotations
 
+import dataclasses
 from abc import ABC, abstractmethod
 from collections.abc import Callable, Iterator
 
@@ -40,16 +41,23 @@ class Sensor(ABC):
     def frames(self) -> Iterator[Frame]:
         """Yield frames until the configured duration or the end of the data."""
 
-    def frames_from_clock(self, due_index: Callable[[], int]) -> Iterator[Frame]:
+    def frames_from_clock(
+        self, due_index: Callable[[], int], touch_frames: int = 0
+    ) -> Iterator[Frame]:
         """Frames at the sensor's own clock: `due_index()` is the newest frame the world has
-        reached now; a frame overtaken by a newer due one is not yielded.
+        reached now; a frame overtaken by a newer due one is not yielded, except that the
+        last `touch_frames` overtaken before each yielded frame come first, marked
+        `touches_only` and without their camera reading (their touches are kept).
 
         This default reads every frame and skips the overtaken ones; a sensor that can go
         straight to a frame (the simulator) overrides it and never makes them.
         """
         for frame in self.frames():
-            if frame.index >= due_index():
+            due = due_index()
+            if frame.index >= due:
                 yield frame
+            elif touch_frames > 0 and frame.index >= due - touch_frames and frame.tactile:
+                yield dataclasses.replace(frame, camera=None, touches_only=True)
 
     def hand_model(self) -> object | None:
         """The hand's kinematic model for camera segmentation, or None when unknown.

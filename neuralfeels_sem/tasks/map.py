@@ -124,6 +124,7 @@ def build_session(
         checkpoint_storage=str(cfg.mapping.checkpoint_storage),
         acquire_thread=bool(cfg.mapping.acquire_thread),
         helper_nice=int(cfg.mapping.helper_nice),
+        overtaken_touch_frames=int(cfg.mapping.overtaken_touch_frames),
     )
     return MappingSession(
         mapper,

@@ -29,7 +29,7 @@ class _Endless:
         index = 0
         while self.limit is None or index < self.limit:
             self.acquired_on.add(threading.current_thread().name)
-            yield SimpleNamespace(index=index, tactile={})
+            yield SimpleNamespace(index=index, tactile={}, touches_only=False)
             index += 1
 
 
@@ -78,7 +78,7 @@ def test_a_stop_frees_both_threads_wherever_they_wait() -> None:
 def test_an_acquisition_error_ends_the_stream_with_it() -> None:
     class _Broken(_Endless):
         def frames(self):
-            yield SimpleNamespace(index=0, tactile={})
+            yield SimpleNamespace(index=0, tactile={}, touches_only=False)
             raise OSError("camera unplugged")
 
     producer = FrameProducer(
@@ -102,12 +102,12 @@ class _Streamed(_Endless):
         super().__init__(limit)
         self.first_s = first_s
 
-    def frames_from_clock(self, due_index):
+    def frames_from_clock(self, due_index, touch_frames=0):
         index = 0
         while (index := max(index, due_index())) < len(self):
             if index == 0:
                 threading.Event().wait(self.first_s)
-            yield SimpleNamespace(index=index, tactile={})
+            yield SimpleNamespace(index=index, tactile={}, touches_only=False)
             index += 1
 
 

@@ -250,16 +250,24 @@ class SimSensor(Sensor):
         for index in range(len(self)):
             yield self.frame_at(index)
 
-    def frames_from_clock(self, due_index: Callable[[], int]) -> Iterator[Frame]:
-        """Only the newest due frame is rendered: the overtaken ones are never made."""
+    def frames_from_clock(
+        self, due_index: Callable[[], int], touch_frames: int = 0
+    ) -> Iterator[Frame]:
+        """Only the newest due frame is rendered, after the DIGITs alone of the last
+        `touch_frames` frames it overtook (Sensor.frames_from_clock); the other overtaken
+        frames are never made."""
         self.open()
-        index = 0
-        while (index := max(index, due_index())) < len(self):
-            yield self.frame_at(index)
-            index += 1
+        index = None
+        while (due := due_index() if index is None else max(index, due_index())) < len(self):
+            if index is not None:
+                for overtaken in range(max(index, due - touch_frames), due):
+                    yield self.frame_at(overtaken, touches_only=True)
+            yield self.frame_at(due)
+            index = due + 1
 
-    def frame_at(self, index: int) -> Frame:
-        """Frame `index` (call with non-decreasing indices: the fingers move incrementally)."""
+    def frame_at(self, index: int, touches_only: bool = False) -> Frame:
+        """Frame `index` (call with non-decreasing indices: the fingers move incrementally);
+        `touches_only`: the DIGITs' readings without the camera's (Frame.touches_only)."""
         self.open()
         t = index / self.fps
         if self.rig.planner is not None:
@@ -280,7 +288,7 @@ class SimSensor(Sensor):
                 gt_material=render.material,
             )
         camera = None
-        if self.camera_renderer is not None:
+        if self.camera_renderer is not None and not touches_only:
             camera = self.camera_renderer.render(
                 state.world_T_object, occluders=self.rig.scene.hand_meshes()
             )
@@ -292,4 +300,5 @@ class SimSensor(Sensor):
             camera=camera,
             gt_world_T_object=state.world_T_object.copy(),
             joint_positions=state.joint_positions,
+            touches_only=touches_only,
         )
