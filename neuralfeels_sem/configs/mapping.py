@@ -47,9 +47,12 @@ class MappingConfig:
     max_lag_s: float = 2.0
     # At sensor.pace=realtime: the touches of up to this many frames overtaken before each
     # frame the mapper takes are still mapped (classified, placed and fused; no camera, no
-    # optimiser steps; pipeline/touch_frames.py): touches are the scarce source. 0: they
-    # are lost with their frames. In simulation each costs rendering its DIGITs.
-    overtaken_touch_frames: int = 4
+    # optimiser steps; pipeline/touch_frames.py); 0: they are lost with their frames. Off
+    # by default: in simulation on the 2-core CPU each costs about as much as a mapped
+    # frame (its DIGITs rendered, classified, depth inferred), so 2 and 4 halved the frames
+    # mapped for more touches and no better maps (docs/usage.md). On a rig whose DIGITs
+    # stream anyway only the classification and depth are paid.
+    overtaken_touch_frames: int = 0
     # Acquisition (rendering in sim, device reads on a rig) in a thread of its own, one
     # frame ahead of classification and perception (pipeline/producer.py); false: one
     # producer thread does both in turn. On the 2-core CPU, with the mapper's step as

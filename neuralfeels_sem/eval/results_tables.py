@@ -231,7 +231,12 @@ def per_seed_cell(runs: Sequence[Run]) -> str:
 
 
 # What a run at sensor.pace=realtime gave up, shown where a table holds such a run.
-PACE_COLUMNS = (("frames", "frames mapped", 0), ("frames_dropped", "frames dropped", 0))
+# touch_frames: dropped frames whose touches were still fused (n/a: runs from before it).
+PACE_COLUMNS = (
+    ("frames", "frames mapped", 0),
+    ("frames_dropped", "frames dropped", 0),
+    ("touch_frames", "touch frames", 0),
+)
 
 
 def pace_cells(runs: Sequence[Run]) -> list[str]:

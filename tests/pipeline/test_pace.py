@@ -4,6 +4,7 @@ from __future__ import annotations
 
 import threading
 import time
+from types import SimpleNamespace
 
 import numpy as np
 import pytest
@@ -11,7 +12,8 @@ import pytest
 from neuralfeels_sem.configs.mapping import MappingConfig
 from neuralfeels_sem.configs.sensor_real import RealSensorConfig, ReplaySensorConfig
 from neuralfeels_sem.configs.sensor_sim import SimSensorConfig
-from neuralfeels_sem.core.frame import Frame
+from neuralfeels_sem.core.digit import DIGIT_HEIGHT, DIGIT_INTRINSICS, DIGIT_WIDTH
+from neuralfeels_sem.core.frame import Frame, TactileReading
 from neuralfeels_sem.pipeline.pace import FrameQueue, PaceClock, PerceivedFrame, StreamEnd
 from neuralfeels_sem.pipeline.segments import Segment, load_segments, run_totals
 from neuralfeels_sem.sensors.base import Sensor
@@ -77,13 +79,60 @@ def test_frames_from_clock_skips_the_overtaken_frames() -> None:
     assert got == [0, 1, 3, 5]
 
 
+class _Touching(Sensor):
+    """Six frames with a camera; the even ones with a DIGIT reading too."""
+
+    def frames(self):
+        for i in range(6):
+            reading = TactileReading(
+                finger="index",
+                image=np.zeros((DIGIT_HEIGHT, DIGIT_WIDTH, 3), np.uint8),
+                world_T_sensor=np.eye(4),
+                intrinsics=DIGIT_INTRINSICS,
+            )
+            camera = SimpleNamespace(name="front_left")
+            tactile = {"index": reading} if i % 2 == 0 else {}
+            yield Frame(i, i * 0.1, np.eye(4), tactile=tactile, camera=camera)
+
+
+def test_frames_from_clock_keeps_the_last_overtaken_frames_with_a_digit_reading() -> None:
+    """Due 5 from frame 0 on: frames 0-4 are overtaken; of the last three (2-4) those with
+    a DIGIT reading (2, 4) come as touches-only frames, without their camera reading."""
+    got = list(_Touching().frames_from_clock(lambda: 5, touch_frames=3))
+    assert [(f.index, f.touches_only) for f in got] == [(2, True), (4, True), (5, False)]
+    assert [f.camera is None for f in got] == [True, True, False]
+
+
+def _contact(touched: bool) -> dict:
+    return {"index": SimpleNamespace(contact=touched)}
+
+
+def test_realtime_queue_carries_the_touches_of_the_frames_it_lets_go() -> None:
+    """With keep_touches a frame let go travels with the newer one when it touched (and so
+    do the touches it carried); one without a touch is forgotten."""
+    forgotten, stop = [], threading.Event()
+    queue = FrameQueue(1, True, on_drop=lambda f: forgotten.append(f.index), keep_touches=True)
+    earlier = (_frame(0), _contact(True))
+    queue.put(PerceivedFrame(_frame(1), _contact(True), touches=[earlier]), stop)
+    queue.put(PerceivedFrame(_frame(2), _contact(False)), stop)
+    queue.put(PerceivedFrame(_frame(3), {}), stop)
+    item = queue.get(0.0)
+    assert [f.index for f, _ in item.touches] == [0, 1]
+    assert forgotten == [2] and item.dropped_before == 2
+    plain = FrameQueue(1, True, on_drop=lambda f: forgotten.append(f.index))
+    plain.put(PerceivedFrame(_frame(4), _contact(True)), stop)
+    plain.put(PerceivedFrame(_frame(5), {}), stop)
+    assert plain.get(0.0).touches == [] and forgotten == [2, 4]
+
+
 def test_lag_and_drops_add_up_over_segments() -> None:
     first, second = Segment(frames_dropped=3), Segment(frames_dropped=1)
     first.add_lag(0.2)
     first.add_lag(0.4)
     second.add_lag(0.9)
+    first.touch_frames, second.touch_frames = 2, 1
     totals = run_totals([first, second], 0.1)
-    assert totals["frames_dropped"] == 4
+    assert totals["frames_dropped"] == 4 and totals["touch_frames"] == 3
     assert totals["lag_max_s"] == 0.9 and totals["lag_mean_s"] == pytest.approx(0.5)
     assert run_totals([Segment()], 0.1)["lag_max_s"] is None
 
@@ -111,6 +160,8 @@ def test_pace_defaults_and_range_checks() -> None:
     for bad in (0.0, -1.0):
         with pytest.raises(ValueError, match="mapping.max_lag_s"):
             MappingConfig(max_lag_s=bad)
+    with pytest.raises(ValueError, match="mapping.overtaken_touch_frames=-1 must be >= 0"):
+        MappingConfig(overtaken_touch_frames=-1)
 
 
 def test_checkpoint_storage_is_one_of_the_codecs() -> None:

@@ -58,5 +58,7 @@ def test_helper_threads_step_back_only_at_offline_pace() -> None:
     """At realtime the producer keeps the sensor's clock: it takes its share of the cores."""
     from neuralfeels_sem.pipeline.session_settings import SessionSettings
 
-    settings = SessionSettings(5, 100, 6, 2.0, "auto", True, helper_nice=10, overtaken_touch_frames=4)
+    settings = SessionSettings(
+        5, 100, 6, 2.0, "auto", True, helper_nice=10, overtaken_touch_frames=4
+    )
     assert settings.nice_at("offline") == 10 and settings.nice_at("realtime") == 0

@@ -91,3 +91,17 @@ def test_constructor_is_cheap_and_checks_arguments() -> None:
         SimSensor(two_material_sphere(), fps=0.0)
     with pytest.raises(ValueError, match="fingers"):
         SimSensor(two_material_sphere(), fingers=["pinky"])
+
+
+def test_realtime_makes_the_digits_alone_of_the_last_overtaken_frames() -> None:
+    """frames_from_clock: frame 0, then due 4 after it: frames 2 and 3 (the last two it
+    overtook) come first, with every DIGIT reading but no camera reading."""
+    sensor = SimSensor(two_material_sphere(), class_names=CLASSES, duration_s=0.6, fps=10.0, seed=0)
+    due = iter([0, 4, 9])
+    with sensor:
+        got = list(sensor.frames_from_clock(lambda: next(due), touch_frames=2))
+    assert [(f.index, f.touches_only) for f in got] == [(0, False), (2, True), (3, True), (4, False)]
+    for frame in got:
+        assert (frame.camera is None) == frame.touches_only
+        assert set(frame.tactile) == set(FINGERS)
+        assert frame.time_s == pytest.approx(frame.index / 10.0)
