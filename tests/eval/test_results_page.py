@@ -240,24 +240,6 @@ def test_ablation_sweep_gets_a_settings_table(tmp_path: Path) -> None:
     assert "No default-config multi-material runs." in page
 
 
-def test_realtime_runs_show_what_the_pace_gave_up(tmp_path: Path) -> None:
-    """Frames mapped and dropped, the frames whose touches alone were fused (n/a for a run
-    from before that count existed) and the largest lag, as ranges over the seeds."""
-    sweep = tmp_path / "pace"
-    for seed, touches in ((0, 40), (1, 55), (2, None)):
-        pace = {"pace": "realtime", "frames": 50 + seed, "frames_dropped": 250 - seed}
-        pace |= {"lag_max_s": 1.0 + seed / 10} | (
-            {} if touches is None else {"touch_frames": touches}
-        )
-        metrics = run_metrics(90.0, 95.0, 50.0, 54.0, "plastic", **pace)
-        overrides = ["object=patched_toy", "sensor.pace=realtime", f"seed={seed}"]
-        write_job(sweep, str(seed), overrides, metrics)
-    other = section(generate(tmp_path, sweep), "Other settings")
-    header = next(line for line in other.splitlines() if line.startswith("| setting"))
-    assert header.endswith("| frames mapped | frames dropped | touch frames | lag max s |")
-    assert cells(other, "object=patched_toy")[-4:] == ["50-52", "248-250", "40-55", "1.00-1.20"]
-
-
 def test_a_setting_pools_runs_only_with_the_same_oracles(tmp_path: Path) -> None:
     sweep = tmp_path / "ablation"
     for k, oracles in enumerate((["object_pose"], ["object_pose", "camera_mask"])):

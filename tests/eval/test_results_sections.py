@@ -216,8 +216,15 @@ def test_realtime_runs_show_what_the_pace_gave_up(tmp_path: Path) -> None:
         write_job(sweep, str(k), ["object=patched_toy", "seed=0", f"sensor.pace={pace}"], metrics)
     page = generate(tmp_path, sweep)
     other = section(page, "Other settings")
-    assert cells(other, "object=patched_toy, sensor.pace=realtime")[-3:] == ["2", "98", "1.50"]
-    assert cells(other, "object=patched_toy, sensor.pace=offline")[-3:] == ["100", "0", "n/a"]
+    # frames mapped, dropped, touches-only frames (n/a: not recorded then), largest lag
+    realtime = ["2", "98", "n/a", "1.50"]
+    assert cells(other, "object=patched_toy, sensor.pace=realtime")[-4:] == realtime
+    assert cells(other, "object=patched_toy, sensor.pace=offline")[-4:] == [
+        "100",
+        "0",
+        "n/a",
+        "n/a",
+    ]
     # The realtime run's few perceived frames stay out of the perception table.
     assert (
         cells(section(page, "Perception against the simulator's ground truth"), "`patched_toy`")[3]
@@ -366,3 +373,21 @@ def test_a_tracker_setting_keeps_the_pose_gt_reference(tmp_path: Path, default_s
     pose = section(generate(tmp_path, default_sweep, sweep), "Pose tracking")
     row = next(r for r in table_rows(pose) if r[1] == "0")
     assert row[8] == "96.0"  # the default sweep's pose=gt run of patched_toy, seed 0
+
+
+def test_realtime_runs_count_the_frames_whose_touches_alone_were_fused(tmp_path: Path) -> None:
+    """Frames mapped and dropped, the frames whose touches alone were fused (n/a for a run
+    from before that count existed) and the largest lag, as ranges over the seeds."""
+    sweep = tmp_path / "multirun" / "touches"
+    for seed, touches in ((0, 40), (1, 55), (2, None)):
+        pace = {"pace": "realtime", "frames": 50 + seed, "frames_dropped": 250 - seed}
+        pace |= {"lag_max_s": 1.0 + seed / 10} | (
+            {} if touches is None else {"touch_frames": touches}
+        )
+        metrics = run_metrics(90.0, 95.0, 50.0, 54.0, "plastic", **pace)
+        overrides = ["object=patched_toy", "sensor.pace=realtime", f"seed={seed}"]
+        write_job(sweep, str(seed), overrides, metrics)
+    other = section(generate(tmp_path, sweep), "Other settings")
+    header = next(line for line in other.splitlines() if line.startswith("| setting"))
+    assert header.endswith("| frames mapped | frames dropped | touch frames | lag max s |")
+    assert cells(other, "object=patched_toy")[-4:] == ["50-52", "248-250", "40-55", "1.00-1.20"]
