@@ -154,6 +154,18 @@ def summary_rows(metrics: dict) -> list[tuple[str, str, str, str]]:
         ("realtime factor", _fmt(metrics.get("realtime_factor"), ".2f"), "", ""),
         ("busy: producer / mapper", _busy(metrics), "", ""),
         ("producer: acquire/classify/perceive", _stages(metrics), "", ""),
+    ] + _pace_rows(metrics)
+
+
+def _pace_rows(metrics: dict) -> list[tuple[str, str, str, str]]:
+    """At sensor.pace=realtime: the frames not mapped (those whose touches were fused
+    among them) and the largest lag; nothing offline."""
+    if metrics.get("pace") != "realtime":
+        return []
+    dropped = f"{metrics.get('frames_dropped', 0)} / {metrics.get('touch_frames', 0)}"
+    return [
+        ("frames dropped / touches kept", dropped, "", ""),
+        ("largest lag", _fmt(metrics.get("lag_max_s"), ".2f", " s"), "", ""),
     ]
 
 
