@@ -102,3 +102,21 @@ def test_mesh_transfer_refuses_bad_input() -> None:
             labels_from_mesh(mesh, np.zeros((3, 3)), tolerance)
     with pytest.raises(ValueError, match=r"\(N, 3\)"):
         labels_from_mesh(mesh, np.zeros((3, 2)), 0.005)
+
+
+def test_a_mesh_far_from_the_samples_costs_no_more_memory_than_a_near_one() -> None:
+    """A run whose tracked pose drifted scores a mesh centimetres from the samples: every
+    sample gets NO_PREDICTION at distance inf, without gathering every face for every
+    sample (trimesh's query did: a 24 GB run was killed for it)."""
+    import tracemalloc
+
+    sphere = two_material_sphere()
+    ev = MatchingEvaluator(sphere, num_samples=4000, seed=0)
+    ico = trimesh.creation.icosphere(subdivisions=6, radius=RADIUS)  # 81 920 faces
+    far = labelled_mesh(ico.apply_translation((0.2, 0.0, 0.0)), predict_by_y)
+    tracemalloc.start()
+    labels, distance = labels_from_mesh(far, ev.points, 0.005)
+    peak = tracemalloc.get_traced_memory()[1]
+    tracemalloc.stop()
+    assert (labels == NO_PREDICTION).all() and np.isinf(distance).all()
+    assert peak < 200e6, peak
