@@ -139,7 +139,6 @@ class TrackedPose(PoseSource):
         self.seed = seed
         self._known_sdf = None
         self.history: list[np.ndarray] = []  # the last two estimates (motion prior)
-        self.history_index: list[int] = []  # their frame indices (frames skipped between)
         self.errors = PoseErrorLog(self._surface_points)
         self.counts = TrackingCounts()
         self.colour = ColourKeyframes(self.tracker.colour, seed)
@@ -166,7 +165,7 @@ class TrackedPose(PoseSource):
         if not self.history:
             pose, tracked = np.asarray(frame.world_T_object, dtype=np.float64).copy(), True
         elif self.name == "track" and not mapper.has_surface:
-            pose = self._predict(frame.index)
+            pose = constant_velocity(self.history)
             self._keep(WARM_UP)
         else:
             pose, tracked = self._track(frame, mapper, points)
@@ -179,20 +178,11 @@ class TrackedPose(PoseSource):
             self._world_points(frame, mapper)  # the first frame: its colour view
         self.colour.add(self._view, pose, tracked)
         self.history = (self.history + [pose])[-2:]
-        self.history_index = (self.history_index + [frame.index])[-2:]
         self.last_estimate = pose
         self.last_frame = frame
         if frame.gt_world_T_object is not None:
             self.errors.add(frame.index, frame.time_s, pose, frame.gt_world_T_object)
         return pose
-
-    def _predict(self, index: int) -> np.ndarray:
-        """The constant-velocity prediction for frame `index`, the last motion scaled to
-        the frames between (at realtime pace the mapper takes frames unevenly)."""
-        if len(self.history) < 2 or len(self.history_index) < 2:
-            return constant_velocity(self.history)
-        before, last = self.history_index
-        return constant_velocity(self.history, (last - before, index - last))
 
     def _world_points(self, frame: Frame, mapper: MapView) -> dict[str, np.ndarray]:
         """The frame's points per source in the world frame; remembers its colour view."""
@@ -217,7 +207,7 @@ class TrackedPose(PoseSource):
         the relative check alone with the highest inlier share, if any (it still fits the
         frame better than a blind extrapolation), else the prediction.
         """
-        predicted = self._predict(frame.index)
+        predicted = constant_velocity(self.history)
         tensors = {source: torch.as_tensor(p) for source, p in points.items()}
         sdf_fn = self._sdf_fn(mapper)
         start = time.perf_counter()
@@ -360,7 +350,6 @@ class TrackedPose(PoseSource):
     def state(self) -> dict:
         return {
             "history": [p.tolist() for p in self.history],
-            "history_index": list(self.history_index),
             **self.errors.state(),
             **self.counts.state(),
             "colour": self.colour.state(),
@@ -370,8 +359,6 @@ class TrackedPose(PoseSource):
 
     def load_state(self, state: dict) -> None:
         self.history = [np.asarray(p, dtype=np.float64) for p in state.get("history", [])]
-        # a checkpoint from before the indices: consecutive frames, as the prior assumed
-        self.history_index = [int(i) for i in state.get("history_index", [])]
         self.errors.load_state(state)
         self.counts.load_state(state)
         self.colour.load_state(state.get("colour", {}))

@@ -58,23 +58,13 @@ def se3_log(pose: np.ndarray) -> np.ndarray:
     return np.concatenate([jac_inv @ pose[:3, 3], w])
 
 
-def constant_velocity(poses: list[np.ndarray], frames: tuple[int, int] = (1, 1)) -> np.ndarray:
-    """Next world_T_object if the last body-frame motion repeats (the last pose when alone).
-
-    `frames`: (frames from the second-last pose to the last, frames from the last to the
-    next); the motion is scaled by their ratio, so frames skipped unevenly (realtime pace)
-    keep the object's speed rather than its last step. Equal counts repeat the step as is.
-    """
+def constant_velocity(poses: list[np.ndarray]) -> np.ndarray:
+    """Next world_T_object if the last body-frame motion repeats (the last pose when alone)."""
     if not poses:
         raise ValueError("constant_velocity needs at least one pose")
-    done, ahead = frames
-    if done < 1 or ahead < 0:
-        raise ValueError(f"frames={frames}: need >= 1 frame between the poses and >= 0 ahead")
     if len(poses) == 1:
         return poses[-1].copy()
     step = invert_pose(poses[-2]) @ poses[-1]
-    if ahead != done:
-        step = se3_exp(se3_log(step) * (ahead / done))
     return orthonormalize_pose(poses[-1] @ step)
 
 

@@ -215,26 +215,3 @@ def test_tracker_config_builds_the_tracker_only_for_tracking_modes(obj) -> None:
     assert not hasattr(build_pose_source("gt", obj, config), "tracker")
     with pytest.raises(ValueError, match="robust_loss"):
         TrackerConfig(robust_loss="l1")
-
-
-def test_the_motion_prior_scales_with_the_frames_skipped(obj) -> None:
-    """At realtime pace the mapper takes frames unevenly: frames 0, 2, then 8. The object
-    turning at a constant rate, the prediction for frame 8 is the 0-2 motion three times
-    over, not once (what the prior assumed before it counted frames)."""
-    from neuralfeels_sem.mapping.se3 import constant_velocity, se3_log
-
-    turn = se3_exp(np.array([0.001, 0.0, 0.0, 0.0, 0.0, np.deg2rad(3.0)]))
-    poses = {k: np.linalg.matrix_power(turn, k) for k in (0, 2, 4, 8)}
-    np.testing.assert_allclose(
-        constant_velocity([poses[0], poses[2]], (2, 6)), poses[8], atol=1e-12
-    )
-    plain = constant_velocity([poses[0], poses[2]])
-    np.testing.assert_allclose(se3_log(plain), se3_log(poses[4]), atol=1e-12)
-    with pytest.raises(ValueError, match="frames"):
-        constant_velocity([poses[0], poses[2]], (0, 1))
-    source = TrackedPose("track", obj)
-    source.history, source.history_index = [poses[0], poses[2]], [0, 2]  # frames 0, 2 tracked
-    resumed = TrackedPose("track", obj)
-    resumed.load_state(source.state())  # the frame indices travel with the checkpoint
-    for s in (source, resumed):
-        np.testing.assert_allclose(s._predict(8), poses[8], atol=1e-12)
