@@ -255,3 +255,19 @@ def test_resume_with_another_model_variant_is_refused(tiny_run: Path, tmp_path: 
     )
     assert result.returncode == 2
     assert "different model" in result.stderr
+
+
+def test_a_tracked_pose_at_realtime_on_a_cpu_is_warned_about() -> None:
+    """Measured: the tracker loses the object at realtime pace on the 2-core CPU, so such a
+    run says so (log and metrics.json notes); a pose oracle, offline pace or a GPU does not."""
+    import torch
+
+    from neuralfeels_sem.tasks.map import tracked_realtime_caveat
+
+    cpu = torch.device("cpu")
+    caveat = tracked_realtime_caveat("track", "realtime", cpu)
+    assert caveat.startswith("mapping.pose=track at sensor.pace=realtime on a CPU")
+    assert "sensor.pace=offline" in caveat and "mapping.pose=gt" in caveat
+    assert tracked_realtime_caveat("gt", "realtime", cpu) is None
+    assert tracked_realtime_caveat("track_known_shape", "offline", cpu) is None
+    assert tracked_realtime_caveat("track", "realtime", torch.device("cuda")) is None
