@@ -33,10 +33,10 @@ def labels_from_mesh(
     The label at the nearest surface point is that of the nearest vertex of the triangle it
     lies on (the mesh carries one predicted class per vertex in
     `mesh.vertex_attributes["label"]`); points farther than `tolerance_m` get NO_PREDICTION
-    and distance inf. Those are told apart first by the faces' centroids, so a mesh far
-    from the samples (a run whose tracked pose drifted) costs no more than a near one:
-    trimesh's own query gathers every face within each point's nearest-vertex distance and
-    ran a run out of memory there.
+    and distance inf. Those are told apart by the faces' centroids first
+    (objects/proximity.closest_faces `within`), so a mesh far from the samples (a run whose
+    tracked pose drifted) costs no more than a near one: trimesh's own query gathers every
+    face within each point's nearest-vertex distance and ran a run out of memory there.
     """
     check_tolerance(tolerance_m)
     if "label" not in mesh.vertex_attributes:
@@ -47,38 +47,17 @@ def labels_from_mesh(
     if points.ndim != 2 or points.shape[1] != 3:
         raise ValueError(f"points must have shape (N, 3), got {points.shape}")
     labels = np.full(len(points), NO_PREDICTION, np.int64)
-    distance = np.full(len(points), np.inf)
     if len(mesh.faces) == 0:
-        return labels, distance
-    near = np.flatnonzero(_may_be_within(mesh, points, tolerance_m))
-    if len(near):
-        labels[near], distance[near] = _nearest_labels(mesh, points[near])
-    labels[distance > tolerance_m] = NO_PREDICTION
-    distance[distance > tolerance_m] = np.inf
-    return labels, distance
-
-
-def _may_be_within(mesh: trimesh.Trimesh, points: np.ndarray, tolerance_m: float) -> np.ndarray:
-    """(N,) bool: could a face lie within `tolerance_m` of the point? A face that does has
-    its centroid within tolerance + its centroid-to-corner radius."""
-    from scipy.spatial import cKDTree
-
-    triangles = np.asarray(mesh.triangles)
-    centroids = triangles.mean(axis=1)
-    radius = float(np.linalg.norm(triangles - centroids[:, None], axis=2).max())
-    reach, _ = cKDTree(centroids).query(points, k=1, distance_upper_bound=tolerance_m + radius)
-    return np.isfinite(reach)
-
-
-def _nearest_labels(mesh: trimesh.Trimesh, points: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
-    """(label, distance) per point from its closest face (exact, objects/proximity.py)."""
+        return labels, np.full(len(points), np.inf)
     import trimesh
 
     from neuralfeels_sem.objects.proximity import closest_faces
 
-    face, distance = closest_faces(mesh, points)
-    closest = trimesh.triangles.closest_point(np.asarray(mesh.triangles)[face], points)
-    corners = np.asarray(mesh.vertices)[mesh.faces[face]]  # (N, 3, 3)
+    face, distance = closest_faces(mesh, points, within=tolerance_m)
+    near = np.flatnonzero(face >= 0)
+    closest = trimesh.triangles.closest_point(np.asarray(mesh.triangles)[face[near]], points[near])
+    corners = np.asarray(mesh.vertices)[mesh.faces[face[near]]]  # (n, 3, 3)
     nearest_corner = np.linalg.norm(corners - closest[:, None, :], axis=2).argmin(axis=1)
-    vertex = mesh.faces[face, nearest_corner]
-    return np.asarray(mesh.vertex_attributes["label"], dtype=np.int64)[vertex], distance
+    vertex = mesh.faces[face[near], nearest_corner]
+    labels[near] = np.asarray(mesh.vertex_attributes["label"], dtype=np.int64)[vertex]
+    return labels, distance

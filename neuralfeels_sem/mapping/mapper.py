@@ -276,11 +276,7 @@ class OnlineMapper:
         the first time warmup_steps; a realtime stream passes steps_per_frame, since the
         world does not wait for a warm-up)."""
         pose = frame.world_T_object if world_T_object is None else world_T_object
-        if not np.isfinite(pose).all():
-            raise NumericalError(
-                f"the object pose for frame {frame.index} is not finite (NaN/inf); "
-                "the pose source diverged: try mapping.pose=gt"
-            )
+        _check_finite_pose(pose, frame.index)
         every_pixel = self.memory.space_prior is not None
         points, pixels = self.points.extract(frame, pose, every_pixel)
         camera, tactile = self.memory.add(frame, points, pixels, pose, touch_labels or {})
@@ -304,8 +300,7 @@ class OnlineMapper:
         """Ingest only the touches of a frame not mapped itself (sensor.pace=realtime:
         pipeline/touch_frames.py), without optimiser steps; how many points were kept.
         `depths`: its contact depths when already read (PointExtractor.contact_depths)."""
-        if not np.isfinite(world_T_object).all():
-            raise NumericalError(f"the object pose for frame {frame.index}'s touches is not finite")
+        _check_finite_pose(world_T_object, frame.index)
         points = self.points.touch_points(frame, world_T_object, depths)
         _, tactile = self.memory.add(frame, points, None, world_T_object, touch_labels)
         self.log.tactile_points_total += tactile
@@ -382,3 +377,11 @@ class OnlineMapper:
         self.log.load_state_dict(state["counters"])
         restore_rng(state["rng"], self.generator)
         self.points.load_state_dict(state.get("perception"))
+
+
+def _check_finite_pose(pose: np.ndarray, frame_index: int) -> None:
+    if not np.isfinite(pose).all():
+        raise NumericalError(
+            f"the object pose for frame {frame_index} is not finite (NaN/inf); "
+            "the pose source diverged: try mapping.pose=gt"
+        )

@@ -65,6 +65,7 @@ class PoseSource:
 
     name = "gt"
     fuse = True  # whether the mapper should fuse the last estimated frame into the map
+    reads_frame_pose = True  # a frame's pose is its own (a frame not estimated has one too)
 
     def estimate(self, frame: Frame, mapper: MapView | None) -> np.ndarray:
         """world_T_object to map this frame with."""
@@ -111,6 +112,8 @@ class TrackedPose(PoseSource):
     placed by the tracked and by the true pose) is recorded wherever the frame has a
     ground-truth pose.
     """
+
+    reads_frame_pose = False  # after the first frame, only estimates
 
     def __init__(
         self,

@@ -36,9 +36,12 @@ def _closest_among(
 
 
 def closest_faces(
-    mesh: trimesh.Trimesh, points: np.ndarray, k: int = 32
+    mesh: trimesh.Trimesh, points: np.ndarray, k: int = 32, within: float | None = None
 ) -> tuple[np.ndarray, np.ndarray]:
-    """(face index (N,), distance (N,)) of the closest face to each (N, 3) point."""
+    """(face index (N,), distance (N,)) of the closest face to each (N, 3) point.
+
+    `within`: only faces that close count; a point with none gets face -1 and distance inf,
+    found from the centroids alone, so points far from the mesh cost no face tests."""
     points = np.asarray(points, dtype=np.float64)
     if points.ndim != 2 or points.shape[1] != 3:
         raise ValueError(f"closest_faces: points must be (N, 3), got {points.shape}")
@@ -47,9 +50,12 @@ def closest_faces(
     # A face closer than d has its centroid within d + (its centroid-to-vertex radius).
     radius = float(np.linalg.norm(triangles - centroids[:, None], axis=2).max())
     tree = cKDTree(centroids)
-    faces = np.empty(len(points), dtype=np.int64)
-    distance = np.empty(len(points))
+    faces = np.full(len(points), -1, dtype=np.int64)
+    distance = np.full(len(points), np.inf)
     todo = np.arange(len(points))
+    if within is not None:  # a face within it has its centroid within it + radius
+        reach, _ = tree.query(points, k=1, distance_upper_bound=within + radius)
+        todo = todo[np.isfinite(reach)]
     while len(todo):
         k = min(k, len(centroids))
         _, candidates = tree.query(points[todo], k=k)
@@ -61,4 +67,7 @@ def closest_faces(
         counts = tree.query_ball_point(points[todo], d + radius, return_length=True)
         todo = todo[counts > k]
         k *= 4
+    if within is not None:
+        beyond = distance > within
+        faces[beyond], distance[beyond] = -1, np.inf
     return faces, distance

@@ -16,7 +16,6 @@ file that does not load is exported over. An ONNX file is a protobuf graph, not 
 from __future__ import annotations
 
 import contextlib
-import hashlib
 import io
 import logging
 import tempfile
@@ -31,7 +30,7 @@ from torch import nn
 
 from neuralfeels_sem.core.errors import ConfigError
 from neuralfeels_sem.utils.atomic import atomic_path
-from neuralfeels_sem.utils.paths import cache_dir
+from neuralfeels_sem.utils.paths import cache_dir, file_digest
 
 log = logging.getLogger(__name__)
 
@@ -113,7 +112,7 @@ def _session(ort, path: Path):
 
 
 def _name(source: Path, input_shape: Sequence[int]) -> str:
-    digest = hashlib.sha256(source.read_bytes()).hexdigest()[:16]
+    digest = file_digest(source)
     shape = "x".join(str(int(s)) for s in input_shape)
     version = torch.__version__.replace("+", "-")
     return f"{source.stem}_{digest}_{shape}_torch{version}_opset{OPSET}.onnx"

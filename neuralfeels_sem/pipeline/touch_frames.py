@@ -51,14 +51,18 @@ class OvertakenTouches:
         pose source and mapper of a MappingSession."""
         for touch_frame, labels, depths in riding:
             session.scorer.log_touches(touch_frame, labels)
-            pose = self._pose(touch_frame, session.pose_source.name, frame, world_T_object)
+            own = session.pose_source.reads_frame_pose
+            pose = (
+                touch_frame.world_T_object
+                if own
+                else self._between(touch_frame, frame, world_T_object)
+            )
             session.mapper.add_touches(touch_frame, labels, pose, depths)
         self._last = (frame.time_s, world_T_object)
         return len(riding)
 
-    def _pose(self, touch_frame: Frame, source: str, frame: Frame, pose: np.ndarray) -> np.ndarray:
-        if source == "gt":
-            return touch_frame.world_T_object
+    def _between(self, touch_frame: Frame, frame: Frame, pose: np.ndarray) -> np.ndarray:
+        """The pose interpolated in time between the last mapped frame's and `frame`'s."""
         if self._last is None:
             return pose
         start_s, start = self._last

@@ -111,7 +111,7 @@ def map_object(cfg: DictConfig, obj, sensor, out: Path, observers: Sequence = ()
 def tracked_realtime_caveat(pose: str, pace: str, device) -> str | None:
     """The warning a tracked pose at realtime pace on a CPU gets: measured on the 2-core
     CPU the tracker lost the object in every run (docs/pose.md, known limitations)."""
-    if pose == "gt" or pace != "realtime" or getattr(device, "type", str(device)) != "cpu":
+    if pose == "gt" or pace != "realtime" or device.type != "cpu":
         return None
     return (
         f"mapping.pose={pose} at sensor.pace=realtime on a CPU: on the 2-core CPU the tracker "

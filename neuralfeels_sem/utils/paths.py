@@ -1,5 +1,6 @@
 """Where the project keeps shipped assets, generated caches and the shared real data."""
 
+import hashlib
 from pathlib import Path
 
 PACKAGE_DIR = Path(__file__).resolve().parents[1]
@@ -15,3 +16,9 @@ def cache_dir(*parts: str) -> Path:
     path = CACHE_DIR.joinpath(*parts)
     path.mkdir(parents=True, exist_ok=True)
     return path
+
+
+def file_digest(path: Path) -> str:
+    """A short content hash of a file: the name of what a cache derives from it (a traced
+    or exported network is stale once its checkpoint's bytes change)."""
+    return hashlib.sha256(Path(path).read_bytes()).hexdigest()[:16]

@@ -40,7 +40,7 @@ class _Session:
     def __init__(self, source: str) -> None:
         self.logged, self.added = [], []
         self.scorer = SimpleNamespace(log_touches=lambda f, labels: self.logged.append(f.index))
-        self.pose_source = SimpleNamespace(name=source)
+        self.pose_source = SimpleNamespace(reads_frame_pose=source == "gt")
         self.mapper = SimpleNamespace(
             add_touches=lambda f, labels, pose, depths: self.added.append((f.index, pose, depths))
         )

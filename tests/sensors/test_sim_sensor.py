@@ -100,7 +100,12 @@ def test_realtime_makes_the_digits_alone_of_the_last_overtaken_frames() -> None:
     due = iter([0, 4, 9])
     with sensor:
         got = list(sensor.frames_from_clock(lambda: next(due), touch_frames=2))
-    assert [(f.index, f.touches_only) for f in got] == [(0, False), (2, True), (3, True), (4, False)]
+    assert [(f.index, f.touches_only) for f in got] == [
+        (0, False),
+        (2, True),
+        (3, True),
+        (4, False),
+    ]
     for frame in got:
         assert (frame.camera is None) == frame.touches_only
         assert set(frame.tactile) == set(FINGERS)

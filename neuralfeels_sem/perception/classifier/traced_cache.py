@@ -9,7 +9,6 @@ files this code wrote are read there; a file that does not load is traced over.
 
 from __future__ import annotations
 
-import hashlib
 import logging
 import warnings
 from collections.abc import Callable
@@ -20,7 +19,7 @@ from torch import nn
 
 from neuralfeels_sem.perception.classifier.model import trace_for_cpu, warm_up
 from neuralfeels_sem.utils.atomic import atomic_path
-from neuralfeels_sem.utils.paths import cache_dir
+from neuralfeels_sem.utils.paths import cache_dir, file_digest
 
 log = logging.getLogger(__name__)
 
@@ -47,7 +46,7 @@ def cached_trace(
 
 
 def _name(source: Path, input_size: int) -> str:
-    digest = hashlib.sha256(source.read_bytes()).hexdigest()[:16]
+    digest = file_digest(source)
     return f"{digest}_{input_size}px_torch{torch.__version__.replace('+', '-')}.pt"
 
 
