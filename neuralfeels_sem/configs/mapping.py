@@ -59,9 +59,17 @@ class MappingConfig:
     # cheap as the 2^16 table makes it, the default run's loop took 82.5-82.7 s against
     # 92.8-95.1 (the same map), and realtime runs mapped more frames (docs/usage.md).
     acquire_thread: bool = True
+    # A sensor that makes frames by index (sensor=sim) runs in a process of its own
+    # (sensors/process_sensor.py): the acquisition thread asks it for frames and waits on a
+    # pipe, so the simulator's Python work no longer takes turns with perception and the
+    # mapper on one interpreter lock. A streaming sensor (a rig, a replay) stays in the
+    # mapping process. The default run, the same map either way: on an H200 at the 2^24
+    # table a realtime factor of 0.87-1.11 against 0.75-0.88 (seeds 1 and 0); on the
+    # 2-core CPU 79 s of loop against 83-85 (docs/field_and_mapper.md#on-a-gpu).
+    acquire_process: bool = True
     # At sensor.pace=offline the mapper is the loop's critical path: the producer, scoring
     # and checkpoint threads add this to their nice value so that the mapper gets a core
-    # first (pipeline/thread_priority.py; Linux; 0: an equal share). On the 2-core CPU the
+    # first (utils/thread_priority.py; Linux; 0: an equal share). On the 2-core CPU the
     # default run's loop took 73.0 s against 75.5-80.8 (the same map; docs/usage.md).
     helper_nice: int = 10
     # How checkpoint.pt stores the hash tables (mapping/checkpoint_codec.py): auto = exact

@@ -22,7 +22,7 @@ import numpy as np
 from torch import nn
 
 from neuralfeels_sem.eval.run_scorer import RunScorer
-from neuralfeels_sem.pipeline.thread_priority import at_priority
+from neuralfeels_sem.utils.thread_priority import at_priority
 
 
 @dataclass
@@ -43,7 +43,7 @@ class BackgroundEval:
         self,
         scorer: RunScorer,
         write_snapshot: Callable[[nn.Module, np.ndarray | None, float, int], None],
-        nice: int = 0,  # added to the worker's nice value (thread_priority.py)
+        nice: int = 0,  # added to the worker's nice value (utils/thread_priority.py)
     ) -> None:
         self.scorer = scorer
         self.write_snapshot = write_snapshot

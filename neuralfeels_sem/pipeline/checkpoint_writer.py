@@ -14,14 +14,14 @@ import threading
 from pathlib import Path
 
 from neuralfeels_sem.mapping.checkpoint import write_checkpoint
-from neuralfeels_sem.pipeline.thread_priority import at_priority
+from neuralfeels_sem.utils.thread_priority import at_priority
 
 
 class CheckpointWriter:
     """Writes `take_checkpoint` copies to one path, in order, on a worker thread."""
 
     def __init__(self, path: Path, nice: int = 0) -> None:
-        self.path = path  # nice: added to the worker's nice value (thread_priority.py)
+        self.path = path  # nice: added to the worker's nice value (utils/thread_priority.py)
         self._jobs: queue.Queue = queue.Queue(maxsize=1)
         self._error: BaseException | None = None
         work = at_priority(self._work, nice)

@@ -30,9 +30,9 @@ from neuralfeels_sem.pipeline.pace import (
     StreamEnd,
     in_contact,
 )
-from neuralfeels_sem.pipeline.thread_priority import at_priority
 from neuralfeels_sem.sensors.base import Sensor
 from neuralfeels_sem.utils.gl_thread import release_thread_gl
+from neuralfeels_sem.utils.thread_priority import at_priority
 
 log = logging.getLogger(__name__)
 
@@ -61,7 +61,7 @@ class FrameProducer:
         after_index: frames up to this index are already mapped (a resumed run).
         acquire_thread: acquire frames in a thread of their own, one frame ahead of
             classification and perception (False: one thread does both in turn).
-        nice: added to the threads' nice value (thread_priority.py; 0: as the mapper's).
+        nice: added to the threads' nice value (utils/thread_priority.py; 0: as the mapper's).
         touch_frames: realtime: the touches of up to this many frames overtaken before each
             frame made are kept (mapping.overtaken_touch_frames): the sensor makes them
             without their camera reading, they are classified and their contact depths
@@ -92,8 +92,11 @@ class FrameProducer:
         self.clock: PaceClock | None = None
         self._stop = threading.Event()
         self.cpu_s = 0.0  # the threads' CPU seconds, added as each ends
-        # CPU seconds by stage (acquire, classify, perceive), added frame by frame
+        # CPU seconds by stage (acquire, classify, perceive), added frame by frame; with the
+        # sensor in a process of its own (sensors/process_sensor.py) that process's CPU
+        # seconds while streaming are acquire_process, acquire this side's share
         self.stage_cpu_s: dict[str, float] = {}
+        self._process_cpu_start: float | None = None
         self._cpu_lock = threading.Lock()
         # acquire -> perceive hand-over: one frame, so acquisition runs one frame ahead
         self._acquired: queue.Queue | None = queue.Queue(maxsize=1) if acquire_thread else None
@@ -108,6 +111,7 @@ class FrameProducer:
         ]
 
     def start(self) -> None:
+        self._process_cpu_start = getattr(self.sensor, "process_cpu_s", None)
         if self.realtime:
             self.clock = PaceClock(float(self.sensor.frame_period_s), self.after_index + 1)
         for thread in self._threads:
@@ -122,6 +126,9 @@ class FrameProducer:
                 log.warning(
                     "%s did not stop within %.0f s; leaving it", thread.name, JOIN_TIMEOUT_S
                 )
+        if self._process_cpu_start is not None:  # a sensor in a process of its own
+            self._add_stage("acquire_process", self.sensor.process_cpu_s - self._process_cpu_start)
+            self._process_cpu_start = None
 
     def _frames(self) -> Iterator[Frame]:
         """The sensor's frames (from the acquisition thread when there is one)."""

@@ -82,3 +82,34 @@ class Sensor(ABC):
 
     def __exit__(self, *exc) -> None:
         self.close()
+
+
+class IndexedSensor(Sensor):
+    """A sensor that can make any frame by its index (the simulator, a sensor in a process
+    of its own): at realtime pace it goes straight to the due frame and never makes the
+    frames it overtook, except the touches asked for."""
+
+    @abstractmethod
+    def frame_at(self, index: int, touches_only: bool = False) -> Frame:
+        """Frame `index` (non-decreasing indices); `touches_only`: its DIGIT readings
+        without the camera's (Frame.touches_only)."""
+
+    def frames(self) -> Iterator[Frame]:
+        self.open()
+        for index in range(len(self)):
+            yield self.frame_at(index)
+
+    def frames_from_clock(
+        self, due_index: Callable[[], int], touch_frames: int = 0
+    ) -> Iterator[Frame]:
+        """Only the newest due frame is made, after the DIGITs alone of the last
+        `touch_frames` frames it overtook (Sensor.frames_from_clock); the other overtaken
+        frames are never made."""
+        self.open()
+        index = None
+        while (due := due_index() if index is None else max(index, due_index())) < len(self):
+            if index is not None:
+                for overtaken in range(max(index, due - touch_frames), due):
+                    yield self.frame_at(overtaken, touches_only=True)
+            yield self.frame_at(due)
+            index = due + 1

@@ -35,7 +35,7 @@ from neuralfeels_sem.pipeline.run_outputs import (
     write_metrics,
     write_touches,
 )
-from neuralfeels_sem.pipeline.session_settings import SessionSettings
+from neuralfeels_sem.pipeline.session_settings import SessionSettings, helper_nice_at
 from neuralfeels_sem.pipeline.touch_advisor import TouchAdvisorConfig, touch_advisors
 from neuralfeels_sem.sensors.factory import build_sensor
 from neuralfeels_sem.tasks.build import (
@@ -59,7 +59,9 @@ def run(cfg: DictConfig) -> dict:
     code_version()  # the code this process started with, before a long run (cached)
     class_names = list(cfg.materials)
     obj = instantiate(cfg.object)
-    sensor = build_sensor(cfg.sensor, obj, class_names)
+    own_process = bool(cfg.mapping.acquire_process)
+    nice = helper_nice_at(int(cfg.mapping.helper_nice), cfg.sensor.get("pace", "offline"))
+    sensor = build_sensor(cfg.sensor, obj, class_names, own_process, nice)
     sensor.open()  # a missing device ends the run here, before any heavy work
     try:
         out = output_dir()

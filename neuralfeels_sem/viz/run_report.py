@@ -194,8 +194,10 @@ def _stages(metrics: dict) -> str:
     shares = stage_shares(metrics)
     if not shares:
         return "n/a"
-    names = ("acquire", "classify", "perceive")
-    return "/".join(f"{100 * shares.get(n, 0.0):.0f}%" for n in names)
+    # the sensor's own process (mapping.acquire_process) counts with the acquisition
+    acquire = shares.get("acquire", 0.0) + shares.get("acquire_process", 0.0)
+    parts = (acquire, shares.get("classify", 0.0), shares.get("perceive", 0.0))
+    return "/".join(f"{100 * share:.0f}%" for share in parts)
 
 
 def print_summary(metrics: dict, out: Path) -> None:

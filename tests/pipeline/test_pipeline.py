@@ -51,11 +51,12 @@ SAME_PERCEPTION = (
 )
 
 
-def _map(cfg, out: Path, wrap=None, observers=()) -> dict:
-    """map_object on a fresh sensor (wrapped by `wrap`), seeded like run.py seeds a run."""
+def _map(cfg, out: Path, wrap=None, observers=(), own_process=False) -> dict:
+    """map_object on a fresh sensor (wrapped by `wrap`; in a process of its own with
+    `own_process`), seeded like run.py seeds a run."""
     seed_everything(int(cfg.seed))
     obj = instantiate(cfg.object)
-    sensor = build_sensor(cfg.sensor, obj, list(cfg.materials))
+    sensor = build_sensor(cfg.sensor, obj, list(cfg.materials), own_process)
     sensor.open()
     try:
         return map_object(cfg, obj, wrap(sensor) if wrap else sensor, out, observers=observers)
@@ -106,11 +107,18 @@ ACQUIRE = pytest.mark.parametrize(
 )
 
 
-@ACQUIRE
-def test_offline_pipeline_gives_the_sequential_loops_figures(tmp_path, acquire) -> None:
-    # With acquisition in a thread of its own too: the same frames, labels and figures.
+@pytest.mark.parametrize(
+    "acquire, own_process",
+    [(True, True), (True, False), pytest.param(False, False, marks=pytest.mark.slow)],
+    ids=["acquire-process", "acquire-thread", "one-thread"],
+)
+def test_offline_pipeline_gives_the_sequential_loops_figures(
+    tmp_path, acquire, own_process
+) -> None:
+    # With acquisition in a thread of its own, the sensor in a process of its own or not:
+    # the same frames, labels and figures.
     cfg = compose_config([*SMALL, f"mapping.acquire_thread={acquire}"])
-    metrics = _map(cfg, tmp_path)
+    metrics = _map(cfg, tmp_path, own_process=own_process)
     expected = json.loads(json.dumps(_sequential_reference(cfg), default=float))
     got = json.loads((tmp_path / "metrics.json").read_text())
     assert got["pace"] == "offline" and got["frames_dropped"] == 0
@@ -123,6 +131,8 @@ def test_offline_pipeline_gives_the_sequential_loops_figures(tmp_path, acquire) 
         assert 0.0 < got[key] <= n * got["wall_s"] + 0.5, (key, got[key], got["wall_s"])
     # The producer's time by stage: each stage some, together within the producer's threads.
     stages = got["producer_stage_cpu_s"]
+    child = stages.pop("acquire_process", None)  # the sensor's own process
+    assert (child is not None and child > 0.0) == own_process, child
     assert sorted(stages) == ["acquire", "classify", "perceive"]
     assert all(seconds > 0.0 for seconds in stages.values()), stages
     assert sum(stages.values()) <= got["producer_cpu_s"] + 1e-3

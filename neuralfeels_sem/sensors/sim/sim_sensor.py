@@ -20,7 +20,7 @@ from __future__ import annotations
 
 import logging
 import threading
-from collections.abc import Callable, Iterator, Sequence
+from collections.abc import Sequence
 
 import numpy as np
 
@@ -29,7 +29,7 @@ from neuralfeels_sem.core.errors import ConfigError
 from neuralfeels_sem.core.frame import Frame, TactileReading
 from neuralfeels_sem.core.hand import FINGERS
 from neuralfeels_sem.objects.material_object import MaterialObject
-from neuralfeels_sem.sensors.base import Sensor, check_pace
+from neuralfeels_sem.sensors.base import IndexedSensor, check_pace
 from neuralfeels_sem.sim.backgrounds import finger_seed
 
 DEFAULT_FIRMNESS_MM = {"index": 1.5, "middle": 1.5, "ring": 1.5, "thumb": 0.7}
@@ -39,7 +39,7 @@ ADVICE_WAIT_S = 600.0  # longest a frame waits for the advice of the frame befor
 log = logging.getLogger(__name__)
 
 
-class SimSensor(Sensor):
+class SimSensor(IndexedSensor):
     """The simulated rig. Construction stores arguments; `open()` builds scene and renderers.
 
     Args:
@@ -244,26 +244,6 @@ class SimSensor(Sensor):
         if self.camera_renderer is not None:
             self.camera_renderer.close()
         self.renderers, self.camera_renderer, self.rig = {}, None, None
-
-    def frames(self) -> Iterator[Frame]:
-        self.open()
-        for index in range(len(self)):
-            yield self.frame_at(index)
-
-    def frames_from_clock(
-        self, due_index: Callable[[], int], touch_frames: int = 0
-    ) -> Iterator[Frame]:
-        """Only the newest due frame is rendered, after the DIGITs alone of the last
-        `touch_frames` frames it overtook (Sensor.frames_from_clock); the other overtaken
-        frames are never made."""
-        self.open()
-        index = None
-        while (due := due_index() if index is None else max(index, due_index())) < len(self):
-            if index is not None:
-                for overtaken in range(max(index, due - touch_frames), due):
-                    yield self.frame_at(overtaken, touches_only=True)
-            yield self.frame_at(due)
-            index = due + 1
 
     def frame_at(self, index: int, touches_only: bool = False) -> Frame:
         """Frame `index` (call with non-decreasing indices: the fingers move incrementally);

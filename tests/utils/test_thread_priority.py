@@ -10,8 +10,8 @@ import threading
 
 import pytest
 
-from neuralfeels_sem.pipeline import thread_priority
-from neuralfeels_sem.pipeline.thread_priority import MAX_NICE, at_priority
+from neuralfeels_sem.utils import thread_priority
+from neuralfeels_sem.utils.thread_priority import MAX_NICE, at_priority
 
 linux = pytest.mark.skipif(sys.platform != "linux", reason="per-thread nice values are Linux's")
 

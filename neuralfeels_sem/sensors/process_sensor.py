@@ -1,0 +1,219 @@
+"""A sensor run in a process of its own (`mapping.acquire_process`).
+
+The frame producer's stages are threads of one interpreter: where the acquisition is
+Python work (the simulated hand's gait planning, the renderers' scene updates) it takes
+turns with perception and the mapper on the interpreter lock, so a machine with cores to
+spare (a GPU machine) still runs them one at a time. ProcessSensor builds the sensor in a
+child process and asks it for frames by index; while the child renders, the thread that
+asked waits on a pipe without holding the lock.
+
+Only sensors that make frames by index (IndexedSensor: the simulator) can move: a rig's
+device reads stream and belong to the process that opened the devices. The child is
+spawned (not forked: the parent holds torch and GL state) and is this program's own, so
+frames come back pickled; nothing a user hands in is unpickled.
+"""
+
+from __future__ import annotations
+
+import contextlib
+import logging
+import multiprocessing as mp
+import queue
+import signal
+import threading
+import time
+import traceback
+from collections.abc import Callable
+from typing import Any
+
+from neuralfeels_sem.core.errors import FrameSourceError
+from neuralfeels_sem.core.frame import Frame
+from neuralfeels_sem.sensors.base import IndexedSensor
+
+log = logging.getLogger(__name__)
+
+OPEN_TIMEOUT_S = 300.0  # building the scene and renderers; a first MuJoCo compile is slow
+CLOSE_TIMEOUT_S = 10.0
+# What the parent reads once, when the child has opened its sensor.
+STATIC = ("name", "pace", "frame_period_s", "accepts_advice", "confirm_regrasps")
+
+
+class ProcessSensor(IndexedSensor):
+    """`build()`'s sensor, opened and run in a child process; the same frames, in order.
+
+    Args:
+        build: makes the sensor in the child (picklable: a module-level function or a
+            functools.partial of one); it must return an IndexedSensor.
+        nice: added to the child's nice value (mapping.helper_nice, as the producer's
+            threads; Linux).
+    """
+
+    def __init__(self, build: Callable[[], IndexedSensor], nice: int = 0) -> None:
+        self.build, self.nice = build, int(nice)
+        self.process_cpu_s = 0.0  # the child's CPU seconds so far (metrics: acquire_process)
+        self._conn = None
+        self._process = None
+        self._static: dict[str, Any] = {}
+        self._length = -1
+        self._hand_model = None
+        self._call_lock = threading.Lock()  # one request in flight: its reply is the next
+        self._send_lock = threading.Lock()  # advice may be sent while a frame is awaited
+
+    def __getattr__(self, name: str):
+        # The child's static attributes (name, pace, ...) once open; before it, the
+        # class defaults (Sensor.pace, frame_period_s).
+        static = self.__dict__.get("_static", {})
+        if name in static:
+            return static[name]
+        raise AttributeError(name)
+
+    def __len__(self) -> int:
+        return self._length
+
+    def open(self) -> None:
+        if self._process is not None:
+            return
+        context = mp.get_context("spawn")
+        self._conn, child_conn = context.Pipe()
+        self._process = context.Process(
+            target=_serve, args=(child_conn, self.build, self.nice), name="sensor", daemon=True
+        )
+        self._process.start()
+        child_conn.close()
+        info = self._reply(OPEN_TIMEOUT_S)
+        self._static, self._length = info["static"], info["length"]
+        self._hand_model = info["hand_model"]
+        self.pace, self.frame_period_s = self._static["pace"], self._static["frame_period_s"]
+
+    def frame_at(self, index: int, touches_only: bool = False) -> Frame:
+        return self._call("frame_at", index, touches_only)
+
+    def hand_model(self):
+        return self._hand_model
+
+    def damage_report(self) -> dict | None:
+        return self._call("damage_report")
+
+    def touch_plan(self) -> dict | None:
+        return self._call("touch_plan") if self._static.get("accepts_advice") else None
+
+    def advise(self, frame_index: int, advice) -> None:
+        """Handed to the child at once, also while a frame is being made (which may wait
+        for this very advice)."""
+        self._send(("advise", (frame_index, advice)))
+
+    def close(self) -> None:
+        process, self._process = self._process, None
+        if process is None:
+            return
+        with contextlib.suppress(OSError, ValueError):  # the child is gone already
+            self._send(("close", ()))
+        process.join(CLOSE_TIMEOUT_S)
+        if process.is_alive():
+            log.warning("the sensor's process did not stop within %.0f s; ending it",
+                        CLOSE_TIMEOUT_S)  # fmt: skip
+            process.kill()  # it ignores SIGTERM (_serve)
+            process.join(CLOSE_TIMEOUT_S)
+        self._conn.close()
+
+    def _call(self, method: str, *args):
+        if self._process is None:
+            self.open()
+        with self._call_lock:
+            self._send(("call", (method, args)))
+            return self._reply(None)
+
+    def _send(self, message: tuple) -> None:
+        with self._send_lock:
+            self._conn.send(message)
+
+    def _reply(self, timeout_s: float | None):
+        """The child's next reply; its error raised here, a dead child a FrameSourceError."""
+        started = time.monotonic()
+        while not self._conn.poll(1.0):
+            if not self._process.is_alive():
+                raise self._ended()
+            if timeout_s is not None and time.monotonic() - started > timeout_s:
+                raise FrameSourceError(
+                    f"the sensor's process did not open within {timeout_s:.0f} s"
+                )
+        try:
+            status, value, cpu_s = self._conn.recv()
+        except EOFError as exc:  # it died: its end of the pipe closed
+            self._process.join(CLOSE_TIMEOUT_S)
+            raise self._ended() from exc
+        self.process_cpu_s = cpu_s
+        if status == "error":
+            raise value
+        return value
+
+    def _ended(self) -> FrameSourceError:
+        return FrameSourceError(
+            f"the sensor's process ended (exit code {self._process.exitcode}) without a "
+            "reply; run with mapping.acquire_process=false to see its error"
+        )
+
+
+def _serve(conn, build: Callable[[], IndexedSensor], nice: int) -> None:
+    """The child: open the sensor, then answer calls until told to close."""
+    from neuralfeels_sem.utils.thread_priority import lower_this_thread
+
+    # The parent ends the run on Ctrl-C or a scheduler's SIGTERM (sent to the whole process
+    # group) and closes this process; the signal here would only end the stream with an
+    # error before the parent has written its outputs.
+    signal.signal(signal.SIGINT, signal.SIG_IGN)
+    signal.signal(signal.SIGTERM, signal.SIG_IGN)
+    lower_this_thread(nice)
+    try:
+        sensor = build()
+        if not isinstance(sensor, IndexedSensor):
+            raise TypeError(f"{type(sensor).__name__} cannot make frames by index")
+        sensor.open()
+        static = {name: getattr(sensor, name, None) for name in STATIC}
+        info = {"static": static, "length": len(sensor), "hand_model": sensor.hand_model()}
+    except BaseException as exc:  # noqa: BLE001 - the parent raises it
+        _answer(conn, "error", _with_traceback(exc))
+        return
+    _answer(conn, "ok", info)
+    calls: queue.Queue = queue.Queue()
+    threading.Thread(target=_read, args=(conn, sensor, calls), daemon=True).start()
+    try:
+        while (call := calls.get()) is not None:
+            method, args = call
+            try:
+                _answer(conn, "ok", getattr(sensor, method)(*args))
+            except BaseException as exc:  # noqa: BLE001 - the parent raises it
+                _answer(conn, "error", _with_traceback(exc))
+    finally:
+        sensor.close()
+
+
+def _read(conn, sensor: IndexedSensor, calls: queue.Queue) -> None:
+    """Advice goes to the sensor as it arrives; calls queue for the serving thread."""
+    try:
+        while True:
+            kind, payload = conn.recv()
+            if kind == "advise":
+                sensor.advise(*payload)
+            elif kind == "call":
+                calls.put(payload)
+            else:
+                break
+    except (EOFError, OSError):
+        pass  # the parent is gone
+    calls.put(None)
+
+
+def _with_traceback(exc: BaseException) -> BaseException:
+    """`exc` with the child's traceback as a note (a pickled exception loses its own)."""
+    if hasattr(exc, "add_note"):  # Python 3.11+
+        exc.add_note("in the sensor's process:\n" + traceback.format_exc().rstrip())
+    return exc
+
+
+def _answer(conn, status: str, value) -> None:
+    cpu_s = time.process_time()
+    try:
+        conn.send((status, value, cpu_s))
+    except Exception as exc:  # noqa: BLE001 - an error that does not pickle: its text
+        conn.send(("error", FrameSourceError(f"{type(value).__name__}: {value} ({exc})"), cpu_s))
