@@ -18,8 +18,8 @@ varies by a tenth between repeats, so one run's factor says little. The median r
 reported, with every run's factor (`realtime_factor_runs`) and the lowest and highest;
 the maps of the repeats are identical (offline pace). With a CUDA GPU,
 `default_run_cuda_log2_24` is the same run on the GPU at the paper's 2^24 table, and
-`default_run_cuda_log2_24_one_thread` that run again right after it with
-`mapping.acquire_thread=false`.
+`default_run_cuda_log2_24_sim_inline` that run again right after it with the simulator in
+the mapping process (`mapping.acquire_process=false`).
 """
 
 from __future__ import annotations
@@ -204,10 +204,10 @@ def run() -> dict:
         # The GPU target: the default run at the paper's table size (2^24 rows per level).
         paper = ("device=cuda", f"model.encoding.log2_table_size={PAPER_LOG2_TABLE}")
         result["default_run_cuda_log2_24"] = _default_run(*paper)
-        # Right after it on the same machine: one producer thread for acquisition and
-        # perception both (the acquisition thread is the default; docs/usage.md).
-        result["default_run_cuda_log2_24_one_thread"] = _default_run(
-            *paper, "mapping.acquire_thread=false"
+        # Right after it on the same machine: the simulator in the mapping process (its
+        # own process is the default; docs/field_and_mapper.md#on-a-gpu).
+        result["default_run_cuda_log2_24_sim_inline"] = _default_run(
+            *paper, "mapping.acquire_process=false"
         )
     result["load_avg_1min_end"] = round(os.getloadavg()[0], 2)
     return result

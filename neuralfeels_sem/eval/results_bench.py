@@ -189,6 +189,12 @@ FIGURES: tuple[tuple[str, str, str, str], ...] = (
         "the same, one producer thread: sensor time / loop time",
         "x",
     ),
+    (
+        "mapper",
+        "default_run_cuda_log2_24_sim_inline.realtime_factor",
+        "the same, the simulator in the mapping process: sensor time / loop time",
+        "x",
+    ),
     ("mapper", "frame_points_ms", "mapper frame points (perception)", "ms/frame"),
     ("mapper", "add_frame_per_s", "mapper frames (points + steps)", "frames/s"),
     ("pose", "known_shape.ms_per_frame", "pose tracking against the true shape", "ms/frame"),

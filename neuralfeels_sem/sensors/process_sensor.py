@@ -15,6 +15,7 @@ frames come back pickled; nothing a user hands in is unpickled.
 
 from __future__ import annotations
 
+import atexit
 import contextlib
 import logging
 import multiprocessing as mp
@@ -80,6 +81,9 @@ class ProcessSensor(IndexedSensor):
         )
         self._process.start()
         child_conn.close()
+        # Before multiprocessing's own exit hook, which would wait for the child for ever
+        # (it ignores SIGTERM) if the sensor was never closed.
+        atexit.register(self.close)
         info = self._reply(OPEN_TIMEOUT_S)
         self._static, self._length = info["static"], info["length"]
         self._hand_model = info["hand_model"]
@@ -106,6 +110,7 @@ class ProcessSensor(IndexedSensor):
         process, self._process = self._process, None
         if process is None:
             return
+        atexit.unregister(self.close)
         with contextlib.suppress(OSError, ValueError):  # the child is gone already
             self._send(("close", ()))
         process.join(CLOSE_TIMEOUT_S)

@@ -159,14 +159,20 @@ def test_an_active_run_before_the_contact_share_reads_as_without_it() -> None:
     assert drift({"sensor": {"policy": "scripted", "planner": planner}}, {}, today) == {}
 
 
-def test_the_acquisition_thread_makes_no_offline_run_another_setting() -> None:
-    """Offline the map is the same with one producer thread or two; at realtime it is not."""
-    today = {"sensor.pace": "offline", "mapping.acquire_thread": True}
-    one_thread = {"mapping": {"acquire_thread": False}}
-    assert drift({"sensor": {"pace": "offline"}, **one_thread}, {}, today) == {}
-    realtime = {"sensor": {"pace": "realtime"}, **one_thread}
+def test_the_acquisition_stages_make_no_offline_run_another_setting() -> None:
+    """Offline the map is the same with one producer thread or two, the simulator in its own
+    process or not; at realtime it is not."""
+    today = {
+        "sensor.pace": "offline",
+        "mapping.acquire_thread": True,
+        "mapping.acquire_process": True,
+    }
+    inline = {"mapping": {"acquire_thread": False, "acquire_process": False}}
+    assert drift({"sensor": {"pace": "offline"}, **inline}, {}, today) == {}
+    realtime = {"sensor": {"pace": "realtime"}, **inline}
     assert drift(realtime, {"sensor.pace": "realtime"}, today) == {
-        "mapping.acquire_thread": (False, True)
+        "mapping.acquire_thread": (False, True),
+        "mapping.acquire_process": (False, True),
     }
 
 

@@ -6,6 +6,8 @@ from __future__ import annotations
 
 import functools
 import os
+import subprocess
+import sys
 import threading
 
 import numpy as np
@@ -19,6 +21,7 @@ from neuralfeels_sem.pipeline.producer import FrameProducer
 from neuralfeels_sem.sensors.base import IndexedSensor, Sensor
 from neuralfeels_sem.sensors.factory import build_sensor
 from neuralfeels_sem.sensors.process_sensor import ProcessSensor
+from neuralfeels_sem.utils.paths import REPO_DIR
 
 
 class _Counter(IndexedSensor):
@@ -167,3 +170,18 @@ def test_the_simulator_in_a_process_makes_the_same_frames() -> None:
             np.testing.assert_array_equal(a.camera.depth, b.camera.depth)
             for finger, reading in a.tactile.items():
                 np.testing.assert_array_equal(reading.image, b.tactile[finger].image)
+
+
+def test_a_program_that_leaves_the_sensor_open_still_exits() -> None:
+    """multiprocessing's exit hook would wait for ever for a child that ignores SIGTERM: the
+    sensor closes itself at exit, ahead of that hook."""
+    script = (
+        "from tests.sensors.test_process_sensor import _in_process\n"
+        "if __name__ == '__main__':\n"
+        "    sensor = _in_process()\n"
+        "    sensor.open()\n"
+        "    print(sensor.frame_at(2).index)\n"
+    )
+    done = subprocess.run([sys.executable, "-c", script], cwd=REPO_DIR, capture_output=True,
+                          text=True, timeout=60)  # fmt: skip
+    assert done.returncode == 0 and done.stdout.strip() == "2", done.stderr
