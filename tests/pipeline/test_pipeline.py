@@ -109,7 +109,12 @@ ACQUIRE = pytest.mark.parametrize(
 
 @pytest.mark.parametrize(
     "acquire, own_process",
-    [(True, True), (True, False), pytest.param(False, False, marks=pytest.mark.slow)],
+    [
+        (True, True),
+        # the other tests here map with the sensor in the test's process
+        pytest.param(True, False, marks=pytest.mark.slow),
+        pytest.param(False, False, marks=pytest.mark.slow),
+    ],
     ids=["acquire-process", "acquire-thread", "one-thread"],
 )
 def test_offline_pipeline_gives_the_sequential_loops_figures(
