@@ -8,9 +8,10 @@ child process and asks it for frames by index; while the child renders, the thre
 asked waits on a pipe without holding the lock.
 
 Only sensors that make frames by index (IndexedSensor: the simulator) can move: a rig's
-device reads stream and belong to the process that opened the devices. The child is
-spawned (not forked: the parent holds torch and GL state) and is this program's own, so
-frames come back pickled; nothing a user hands in is unpickled.
+device reads stream and belong to the process that opened the devices. The child is a
+fresh interpreter (not a fork: the parent holds torch and GL state) running this module's
+`child_main`; it is this program's own, so the sensor's recipe goes to it and frames come
+back pickled; nothing a user hands in is unpickled.
 """
 
 from __future__ import annotations
@@ -19,12 +20,16 @@ import atexit
 import contextlib
 import logging
 import multiprocessing as mp
+import os
 import queue
 import signal
+import subprocess
+import sys
 import threading
 import time
 import traceback
 from collections.abc import Callable
+from multiprocessing.connection import Connection
 from typing import Any
 
 from neuralfeels_sem.core.errors import FrameSourceError
@@ -33,6 +38,11 @@ from neuralfeels_sem.sensors.base import IndexedSensor
 
 log = logging.getLogger(__name__)
 
+# The child interpreter's entry (argv[1]: the fd of its end of the pipe).
+CHILD_MAIN = (
+    "import sys; from neuralfeels_sem.sensors.process_sensor import child_main; "
+    "child_main(int(sys.argv[1]))"
+)
 OPEN_TIMEOUT_S = 300.0  # building the scene and renderers; a first MuJoCo compile is slow
 CLOSE_TIMEOUT_S = 10.0
 # What the parent reads once, when the child has opened its sensor.
@@ -74,16 +84,20 @@ class ProcessSensor(IndexedSensor):
     def open(self) -> None:
         if self._process is not None:
             return
-        context = mp.get_context("spawn")
-        self._conn, child_conn = context.Pipe()
-        self._process = context.Process(
-            target=_serve, args=(child_conn, self.build, self.nice), name="sensor", daemon=True
+        # A plain child interpreter, not a multiprocessing one: spawn's start-up re-imports
+        # the parent's main module and copies its start method, which fails inside a joblib
+        # (loky) worker of a multirun sweep and in a script without a main guard.
+        self._conn, child_conn = mp.Pipe()
+        fd = child_conn.fileno()
+        self._process = subprocess.Popen(
+            [sys.executable, "-c", CHILD_MAIN, str(fd)],
+            pass_fds=(fd,),
+            env={**os.environ, "PYTHONPATH": os.pathsep.join(p for p in sys.path if p)},
         )
-        self._process.start()
         child_conn.close()
-        # Before multiprocessing's own exit hook, which would wait for the child for ever
-        # (it ignores SIGTERM) if the sensor was never closed.
+        # A sensor never closed would leave the child waiting on its pipe: closed at exit.
         atexit.register(self.close)
+        self._send(("start", (self.build, self.nice)))
         info = self._reply(OPEN_TIMEOUT_S)
         self._static, self._length = info["static"], info["length"]
         self._hand_model = info["hand_model"]
@@ -113,12 +127,13 @@ class ProcessSensor(IndexedSensor):
         atexit.unregister(self.close)
         with contextlib.suppress(OSError, ValueError):  # the child is gone already
             self._send(("close", ()))
-        process.join(CLOSE_TIMEOUT_S)
-        if process.is_alive():
+        try:
+            process.wait(CLOSE_TIMEOUT_S)
+        except subprocess.TimeoutExpired:
             log.warning("the sensor's process did not stop within %.0f s; ending it",
                         CLOSE_TIMEOUT_S)  # fmt: skip
-            process.kill()  # it ignores SIGTERM (_serve)
-            process.join(CLOSE_TIMEOUT_S)
+            process.kill()  # it ignores SIGTERM (child_main)
+            process.wait(CLOSE_TIMEOUT_S)
         self._conn.close()
 
     def _call(self, method: str, *args):
@@ -136,7 +151,7 @@ class ProcessSensor(IndexedSensor):
         """The child's next reply; its error raised here, a dead child a FrameSourceError."""
         started = time.monotonic()
         while not self._conn.poll(1.0):
-            if not self._process.is_alive():
+            if self._process.poll() is not None:
                 raise self._ended()
             if timeout_s is not None and time.monotonic() - started > timeout_s:
                 raise FrameSourceError(
@@ -145,7 +160,8 @@ class ProcessSensor(IndexedSensor):
         try:
             status, value, cpu_s = self._conn.recv()
         except EOFError as exc:  # it died: its end of the pipe closed
-            self._process.join(CLOSE_TIMEOUT_S)
+            with contextlib.suppress(subprocess.TimeoutExpired):
+                self._process.wait(CLOSE_TIMEOUT_S)
             raise self._ended() from exc
         self.process_cpu_s = cpu_s
         if status == "error":
@@ -154,20 +170,31 @@ class ProcessSensor(IndexedSensor):
 
     def _ended(self) -> FrameSourceError:
         return FrameSourceError(
-            f"the sensor's process ended (exit code {self._process.exitcode}) without a "
+            f"the sensor's process ended (exit code {self._process.returncode}) without a "
             "reply; run with mapping.acquire_process=false to see its error"
         )
 
 
-def _serve(conn, build: Callable[[], IndexedSensor], nice: int) -> None:
-    """The child: open the sensor, then answer calls until told to close."""
-    from neuralfeels_sem.utils.thread_priority import lower_this_thread
-
+def child_main(fd: int) -> None:
+    """The child interpreter: take the sensor's recipe from the pipe at `fd`, open it,
+    then answer calls until told to close."""
     # The parent ends the run on Ctrl-C or a scheduler's SIGTERM (sent to the whole process
     # group) and closes this process; the signal here would only end the stream with an
     # error before the parent has written its outputs.
     signal.signal(signal.SIGINT, signal.SIG_IGN)
     signal.signal(signal.SIGTERM, signal.SIG_IGN)
+    conn = Connection(fd)
+    try:
+        _, (build, nice) = conn.recv()
+    except BaseException as exc:  # noqa: BLE001 - a recipe that does not unpickle here
+        _answer(conn, "error", _with_traceback(exc))
+        return
+    _serve(conn, build, nice)
+
+
+def _serve(conn, build: Callable[[], IndexedSensor], nice: int) -> None:
+    from neuralfeels_sem.utils.thread_priority import lower_this_thread
+
     lower_this_thread(nice)
     try:
         sensor = build()

@@ -185,3 +185,17 @@ def test_a_program_that_leaves_the_sensor_open_still_exits() -> None:
     done = subprocess.run([sys.executable, "-c", script], cwd=REPO_DIR, capture_output=True,
                           text=True, timeout=60)  # fmt: skip
     assert done.returncode == 0 and done.stdout.strip() == "2", done.stderr
+
+
+def _indices_in_a_worker(length: int) -> list[int]:
+    with _in_process(length=length) as sensor:
+        return [f.index for f in sensor.frames()]
+
+
+def test_a_sweep_worker_runs_the_sensor_in_a_process() -> None:
+    """hydra's joblib launcher runs each job of a sweep in a loky worker, where
+    multiprocessing's spawn could not start a child (it copied the worker's start method)."""
+    from joblib import Parallel, delayed
+
+    got = Parallel(n_jobs=2, backend="loky")(delayed(_indices_in_a_worker)(n) for n in (2, 3))
+    assert got == [[0, 1], [0, 1, 2]]
