@@ -65,7 +65,7 @@ class MappingConfig:
     # mapper on one interpreter lock. A streaming sensor (a rig, a replay) stays in the
     # mapping process. The default run, the same map either way: on an H200 at the 2^24
     # table a realtime factor of 0.87-1.11 against 0.75-0.88 (seeds 1 and 0); on the
-    # 2-core CPU 79 s of loop against 83-85 (docs/field_and_mapper.md#on-a-gpu).
+    # 2-core CPU about the same (79-87 s of loop against 83-89; docs/field_and_mapper.md).
     acquire_process: bool = True
     # At sensor.pace=offline the mapper is the loop's critical path: the producer, scoring
     # and checkpoint threads add this to their nice value so that the mapper gets a core
