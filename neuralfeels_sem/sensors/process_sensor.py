@@ -47,6 +47,8 @@ OPEN_TIMEOUT_S = 300.0  # building the scene and renderers; a first MuJoCo compi
 CLOSE_TIMEOUT_S = 10.0
 # What the parent reads once, when the child has opened its sensor.
 STATIC = ("name", "pace", "frame_period_s", "accepts_advice", "confirm_regrasps")
+# What comes with every reply (the sensor's methods of these names, where it has them).
+STATE = ("touch_plan", "damage_report")
 
 
 class ProcessSensor(IndexedSensor):
@@ -62,6 +64,7 @@ class ProcessSensor(IndexedSensor):
     def __init__(self, build: Callable[[], IndexedSensor], nice: int = 0) -> None:
         self.build, self.nice = build, int(nice)
         self.process_cpu_s = 0.0  # the child's CPU seconds so far (metrics: acquire_process)
+        self._state: dict[str, Any] = {}  # STATE, as of the child's last reply
         self._conn = None
         self._process = None
         self._static: dict[str, Any] = {}
@@ -109,11 +112,14 @@ class ProcessSensor(IndexedSensor):
     def hand_model(self):
         return self._hand_model
 
+    # Read from the state that comes with every reply, never asked for: the session reads
+    # them on the mapper's thread, and a call would queue behind the frame the child is
+    # making, which at offline pace with sensor.policy=active waits for that thread's advice.
     def damage_report(self) -> dict | None:
-        return self._call("damage_report")
+        return self._state.get("damage_report")
 
     def touch_plan(self) -> dict | None:
-        return self._call("touch_plan") if self._static.get("accepts_advice") else None
+        return self._state.get("touch_plan")
 
     def advise(self, frame_index: int, advice) -> None:
         """Handed to the child at once, also while a frame is being made (which may wait
@@ -158,12 +164,12 @@ class ProcessSensor(IndexedSensor):
                     f"the sensor's process did not open within {timeout_s:.0f} s"
                 )
         try:
-            status, value, cpu_s = self._conn.recv()
+            status, value, cpu_s, state = self._conn.recv()
         except EOFError as exc:  # it died: its end of the pipe closed
             with contextlib.suppress(subprocess.TimeoutExpired):
                 self._process.wait(CLOSE_TIMEOUT_S)
             raise self._ended() from exc
-        self.process_cpu_s = cpu_s
+        self.process_cpu_s, self._state = cpu_s, state
         if status == "error":
             raise value
         return value
@@ -206,16 +212,16 @@ def _serve(conn, build: Callable[[], IndexedSensor], nice: int) -> None:
     except BaseException as exc:  # noqa: BLE001 - the parent raises it
         _answer(conn, "error", _with_traceback(exc))
         return
-    _answer(conn, "ok", info)
+    _answer(conn, "ok", info, sensor)
     calls: queue.Queue = queue.Queue()
     threading.Thread(target=_read, args=(conn, sensor, calls), daemon=True).start()
     try:
         while (call := calls.get()) is not None:
             method, args = call
             try:
-                _answer(conn, "ok", getattr(sensor, method)(*args))
+                _answer(conn, "ok", getattr(sensor, method)(*args), sensor)
             except BaseException as exc:  # noqa: BLE001 - the parent raises it
-                _answer(conn, "error", _with_traceback(exc))
+                _answer(conn, "error", _with_traceback(exc), sensor)
     finally:
         sensor.close()
 
@@ -243,9 +249,13 @@ def _with_traceback(exc: BaseException) -> BaseException:
     return exc
 
 
-def _answer(conn, status: str, value) -> None:
+def _answer(conn, status: str, value, sensor: IndexedSensor | None = None) -> None:
     cpu_s = time.process_time()
+    state = {}
+    if sensor is not None:
+        state = {name: getattr(sensor, name)() for name in STATE if hasattr(sensor, name)}
     try:
-        conn.send((status, value, cpu_s))
+        conn.send((status, value, cpu_s, state))
     except Exception as exc:  # noqa: BLE001 - an error that does not pickle: its text
-        conn.send(("error", FrameSourceError(f"{type(value).__name__}: {value} ({exc})"), cpu_s))
+        error = FrameSourceError(f"{type(value).__name__}: {value} ({exc})")
+        conn.send(("error", error, cpu_s, state))

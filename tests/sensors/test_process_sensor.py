@@ -116,10 +116,17 @@ def test_advice_reaches_a_frame_that_waits_for_it() -> None:
         got = []
         waiting = threading.Thread(target=lambda: got.append(sensor.frame_at(1)))
         waiting.start()
+        # The session reads the plan on the thread that advises: it must not queue behind
+        # the waiting frame (that deadlocked an active run).
+        plans = []
+        reader = threading.Thread(target=lambda: plans.append(sensor.touch_plan()))
+        reader.start()
+        reader.join(5.0)
+        assert plans == [{"advice": []}], plans  # as of the child's last reply
         sensor.advise(0, "press here")
         waiting.join(20.0)
         assert got and got[0].index == 1
-        assert sensor.touch_plan() == {"advice": [(0, "press here")]}
+        assert sensor.touch_plan() == {"advice": [(0, "press here")]}  # with frame 1's reply
 
 
 def test_the_producer_counts_the_childs_cpu_time() -> None:
