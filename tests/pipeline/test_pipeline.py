@@ -16,6 +16,7 @@ from neuralfeels_sem.configs import to_config
 from neuralfeels_sem.core.errors import DataError, FrameSourceError
 from neuralfeels_sem.mapping.pose_source import build_pose_source
 from neuralfeels_sem.mapping.pose_tracker import TrackerConfig
+from neuralfeels_sem.pipeline.touch_advisor import TouchAdvisorConfig, touch_advisors
 from neuralfeels_sem.sensors.factory import build_sensor
 from neuralfeels_sem.tasks.build import BOUND_MARGIN, build_mapper, build_scorer
 from neuralfeels_sem.tasks.map import map_object
@@ -225,3 +226,32 @@ def test_a_producer_failing_before_any_data_raises_its_error_alone(tmp_path) -> 
     with pytest.raises(RuntimeError, match="no frames today"):
         _map(cfg, tmp_path, wrap=lambda s: _FailingSensor(s, 0, RuntimeError("no frames today")))
     assert not (tmp_path / "metrics.json").exists()
+
+
+@pytest.mark.slow  # 30 s; test_process_sensor.py checks the same hand-over in seconds
+@pytest.mark.timeout(300)  # the deadlock this guards against waited 600 s for advice
+def test_active_touch_with_the_simulator_in_its_own_process(tmp_path) -> None:
+    """The advisor hands the sensor its advice and reads its plan on the mapper's thread
+    while the child makes the next frame, which waits for that advice: the run must end
+    with the figures of the same run with the sensor in the test's process."""
+    cfg = compose_config([*SMALL, "sensor.policy=active"])
+    got = {}
+    for own_process in (True, False):
+        out = tmp_path / str(own_process)
+        out.mkdir()
+        seed_everything(int(cfg.seed))
+        obj = instantiate(cfg.object)
+        sensor = build_sensor(cfg.sensor, obj, list(cfg.materials), own_process)
+        sensor.open()
+        try:
+            advisors = touch_advisors(to_config(TouchAdvisorConfig, cfg.mapping.advisor),
+                                      sensor, out)  # fmt: skip
+            assert len(advisors) == 1
+            got[own_process] = map_object(cfg, obj, sensor, out, observers=advisors)
+        finally:
+            sensor.close()
+    for key in SAME_FIGURES:
+        assert got[True][key] == got[False][key], key
+    suggestions = json.loads((tmp_path / "True" / "touch_suggestions.json").read_text())
+    plan = suggestions["touch_plan"]
+    assert plan["policy"] == "active" and plan["choices"] > 0
