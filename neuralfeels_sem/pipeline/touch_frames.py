@@ -49,9 +49,9 @@ class OvertakenTouches:
         """Map the `riding` touches (`take`) before `frame`, which is mapped with
         `world_T_object`; how many frames' touches were mapped. `session`: the scorer,
         pose source and mapper of a MappingSession."""
+        own = session.pose_source.reads_frame_pose
         for touch_frame, labels, depths in riding:
             session.scorer.log_touches(touch_frame, labels)
-            own = session.pose_source.reads_frame_pose
             pose = (
                 touch_frame.world_T_object
                 if own

@@ -35,6 +35,7 @@ from typing import Any
 from neuralfeels_sem.core.errors import FrameSourceError
 from neuralfeels_sem.core.frame import Frame
 from neuralfeels_sem.sensors.base import IndexedSensor
+from neuralfeels_sem.utils.thread_priority import lower_this_thread
 
 log = logging.getLogger(__name__)
 
@@ -45,7 +46,7 @@ CHILD_MAIN = (
 )
 OPEN_TIMEOUT_S = 300.0  # building the scene and renderers; a first MuJoCo compile is slow
 CLOSE_TIMEOUT_S = 10.0
-# What the parent reads once, when the child has opened its sensor.
+# What the parent reads once, when the child has opened its sensor, and takes as its own.
 STATIC = ("name", "pace", "frame_period_s", "accepts_advice", "confirm_regrasps")
 # What comes with every reply (the sensor's methods of these names, where it has them).
 STATE = ("touch_plan", "damage_report")
@@ -67,19 +68,10 @@ class ProcessSensor(IndexedSensor):
         self._state: dict[str, Any] = {}  # STATE, as of the child's last reply
         self._conn = None
         self._process = None
-        self._static: dict[str, Any] = {}
         self._length = -1
         self._hand_model = None
         self._call_lock = threading.Lock()  # one request in flight: its reply is the next
         self._send_lock = threading.Lock()  # advice may be sent while a frame is awaited
-
-    def __getattr__(self, name: str):
-        # The child's static attributes (name, pace, ...) once open; before it, the
-        # class defaults (Sensor.pace, frame_period_s).
-        static = self.__dict__.get("_static", {})
-        if name in static:
-            return static[name]
-        raise AttributeError(name)
 
     def __len__(self) -> int:
         return self._length
@@ -102,9 +94,9 @@ class ProcessSensor(IndexedSensor):
         atexit.register(self.close)
         self._send(("start", (self.build, self.nice)))
         info = self._reply(OPEN_TIMEOUT_S)
-        self._static, self._length = info["static"], info["length"]
-        self._hand_model = info["hand_model"]
-        self.pace, self.frame_period_s = self._static["pace"], self._static["frame_period_s"]
+        for name, value in info["static"].items():  # the child's sensor's, as its own
+            setattr(self, name, value)
+        self._length, self._hand_model = info["length"], info["hand_model"]
 
     def frame_at(self, index: int, touches_only: bool = False) -> Frame:
         return self._call("frame_at", index, touches_only)
@@ -199,8 +191,6 @@ def child_main(fd: int) -> None:
 
 
 def _serve(conn, build: Callable[[], IndexedSensor], nice: int) -> None:
-    from neuralfeels_sem.utils.thread_priority import lower_this_thread
-
     lower_this_thread(nice)
     try:
         sensor = build()
