@@ -15,13 +15,10 @@ from neuralfeels_sem.core.geometry import Intrinsics, backproject, transform_poi
 from neuralfeels_sem.core.materials import BACKGROUND
 from neuralfeels_sem.eval.matching import Predictor, predict_labels
 from neuralfeels_sem.eval.mesh_render import DepthRenderer, orbit_views
-from neuralfeels_sem.eval.surface import closest_faces
 from neuralfeels_sem.objects.material_object import IGNORE, MaterialObject
+from neuralfeels_sem.objects.proximity import closest_surface_points
 
 FOV_Y_DEG = 40.0
-# Rendered surface points lie within ~0.2 mm of the mesh (depth-buffer precision); beyond 1 mm
-# the nearest-face search double-checks with the exact query.
-RENDER_TOL_M = 1e-3
 
 
 class ImageMatcher:
@@ -76,7 +73,7 @@ class ImageMatcher:
                 )
                 # Snap to the surface (depth-buffer error is ~0.1 mm), so the point the predictor
                 # is asked at lies on the face that gives the pixel its ground-truth label.
-                faces, _, pts = closest_faces(mesh, seen, tol=RENDER_TOL_M)
+                faces, _, pts = closest_surface_points(mesh, seen)
                 self._pixels.append(np.flatnonzero(visible))
                 self.gt[v][visible] = self.obj.face_labels[faces]
                 # Lambert-like shading from the face normal, only for pictures.
