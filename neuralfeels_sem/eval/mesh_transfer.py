@@ -34,7 +34,7 @@ def labels_from_mesh(
     lies on (the mesh carries one predicted class per vertex in
     `mesh.vertex_attributes["label"]`); points farther than `tolerance_m` get NO_PREDICTION
     and distance inf. Those are told apart by the faces' centroids first
-    (objects/proximity.closest_faces `within`), so a mesh far from the samples (a run whose
+    (objects/proximity.closest_surface_points `within`), so a mesh far from the samples (a run whose
     tracked pose drifted) costs no more than a near one: trimesh's own query gathers every
     face within each point's nearest-vertex distance and ran a run out of memory there.
     """
@@ -49,13 +49,11 @@ def labels_from_mesh(
     labels = np.full(len(points), NO_PREDICTION, np.int64)
     if len(mesh.faces) == 0:
         return labels, np.full(len(points), np.inf)
-    import trimesh
+    from neuralfeels_sem.objects.proximity import closest_surface_points
 
-    from neuralfeels_sem.objects.proximity import closest_faces
-
-    face, distance = closest_faces(mesh, points, within=tolerance_m)
+    face, distance, closest = closest_surface_points(mesh, points, within=tolerance_m)
     near = np.flatnonzero(face >= 0)
-    closest = trimesh.triangles.closest_point(np.asarray(mesh.triangles)[face[near]], points[near])
+    closest = closest[near]
     corners = np.asarray(mesh.vertices)[mesh.faces[face[near]]]  # (n, 3, 3)
     nearest_corner = np.linalg.norm(corners - closest[:, None, :], axis=2).argmin(axis=1)
     vertex = mesh.faces[face[near], nearest_corner]
