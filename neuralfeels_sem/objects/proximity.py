@@ -71,8 +71,8 @@ def closest_surface_points(
 ) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
     """closest_faces with the closest point on each face too: (face (N,), distance (N,),
     point (N, 3); NaN where no face lies `within`). `k`: candidate faces per point in the
-    first round (16: 100k points near a 20k-face mesh in about 1.3 s on the 2-core CPU, half
-    the time of 8 or 32); points it cannot settle get 4k, and so on."""
+    first round (100k points within 0.1 mm of the plushie's 20k faces, 2-core CPU: 1.3 s at
+    16, 2.6 s at 8, 1.7 s at 32); points it cannot settle get 4k, and so on."""
     points = np.asarray(points, dtype=np.float64)
     if points.ndim != 2 or points.shape[1] != 3:
         raise ValueError(f"closest_faces: points must be (N, 3), got {points.shape}")
