@@ -8,7 +8,7 @@ import cv2
 import numpy as np
 import pytest
 
-from neuralfeels_sem.perception.contact import ContactGate
+from neuralfeels_sem.perception.contact import ContactGate, shows_change
 from tests.perception.synthetic_tactile import background, pressed
 
 
@@ -110,3 +110,23 @@ def test_change_score_is_the_blurred_summed_rgb_change_less_the_drift() -> None:
     diff -= np.median(diff[::4, ::4].reshape(-1, 3), axis=0)
     expected = cv2.GaussianBlur(np.abs(diff).sum(axis=2), (0, 0), 2.0)
     np.testing.assert_array_equal(gate.difference(frame, quiet), expected)
+
+
+def test_shows_change_ignores_pixel_noise_and_sees_a_press() -> None:
+    bg = background(4)
+    rng = np.random.default_rng(4)
+    for _ in range(5):  # the simulator's pixel noise (std 2 grey levels per channel)
+        noisy = np.clip(bg + rng.normal(0.0, 2.0, bg.shape), 0, 255).astype(np.uint8)
+        assert not shows_change(noisy, bg)
+    assert shows_change(pressed(4, 2, rng), bg)
+    small = bg.copy()  # a press smaller than any the depth network reports (150 px)
+    cv2.circle(small, (120, 160), 5, (255, 255, 255), -1)
+    assert shows_change(small, bg)
+    with pytest.raises(ValueError, match="differ in shape"):
+        shows_change(bg, bg[:, :200])
+
+
+def test_real_contact_frames_show_change(shared_data: Path) -> None:
+    reference = _read(shared_data / "digit_real" / "backgrounds" / "aurova_bg_1.png")
+    for name in ("ycb_grasp_1.png", "ycb_grasp_2.png"):
+        assert shows_change(_read(shared_data / "digit_real" / "contact" / name), reference)

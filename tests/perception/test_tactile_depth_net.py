@@ -141,6 +141,32 @@ def test_net_source_finds_a_simulated_press_and_its_depth() -> None:
     assert np.array_equal(unpressed, source(empty)) and not unpressed.any()
 
 
+def test_frames_without_change_skip_the_network(monkeypatch: pytest.MonkeyPatch) -> None:
+    """Only frames that differ from their background go through the network (in one
+    batch); the others have no contact."""
+    images, backgrounds = frames(3, seed=5)
+    quiet = backgrounds[1]
+    readings = [
+        TactileReading(f, im, np.eye(4), DIGIT_INTRINSICS, background=bg)
+        for f, im, bg in zip(
+            ("index", "middle", "ring"), [images[0], quiet, images[2]], backgrounds
+        )
+    ]
+    source = TactileDepth(TactileDepthConfig("net"))
+    batches = []
+
+    def predict(ims: np.ndarray, bgs: np.ndarray) -> np.ndarray:
+        batches.append(len(ims))
+        return np.full((len(ims), 320, 240), 0.02, np.float32)
+
+    monkeypatch.setattr(source.net, "predict", predict)
+    depths = source.batch(readings)
+    assert batches == [2]
+    assert depths[0].min() == depths[2].min() == 0.02
+    assert depths[1].shape == (320, 240) and depths[1].dtype == np.float32 and not depths[1].any()
+    assert not source(readings[1]).any() and batches == [2]
+
+
 def test_load_reads_the_network_only_for_the_net_source() -> None:
     # A run loads it before its clock starts (pipeline/mapping_session.py), not on a touch.
     net, gt = TactileDepth(TactileDepthConfig("net")), TactileDepth(TactileDepthConfig("gt"))
