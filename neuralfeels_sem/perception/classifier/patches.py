@@ -110,17 +110,29 @@ def pixel_labels(
     read = labels != NO_LABEL
     if not read.any():
         return out, conf
+    # Pixels farther than reach_px from every read centre stay unlabelled: only the box
+    # around the centres is measured (half the time of the whole frame on a run's touches).
+    seen = centres[read]
+    r0, r1 = _span(seen[:, 0], reach_px, shape[0])
+    c0, c1 = _span(seen[:, 1], reach_px, shape[1])
+    rows = np.arange(r0, r1, dtype=np.float64)[:, None]
+    cols = np.arange(c0, c1, dtype=np.float64)[None, :]
     # One pass per centre keeping the running nearest (the first of equals, as argmin
     # would): no (H, W, K) array, a few times faster for the few centres of a touch.
-    rows = np.arange(shape[0], dtype=np.float64)[:, None]
-    cols = np.arange(shape[1], dtype=np.float64)[None, :]
-    best = np.full(shape, np.inf)
-    nearest = np.zeros(shape, dtype=np.int64)
-    for k, (r, c) in enumerate(centres[read]):
+    best = np.full((r1 - r0, c1 - c0), np.inf)
+    nearest = np.zeros(best.shape, dtype=np.int64)
+    for k, (r, c) in enumerate(seen):
         d2 = (rows - r) ** 2 + (cols - c) ** 2
-        closer = d2 < best
-        best[closer], nearest[closer] = d2[closer], k
+        np.putmask(nearest, d2 < best, k)
+        np.minimum(best, d2, out=best)
     near = best <= reach_px**2
-    out[near] = labels[read][nearest[near]]
-    conf[near] = np.asarray(confidence, np.float32)[read][nearest[near]]
+    out[r0:r1, c0:c1][near] = labels[read][nearest[near]]
+    conf[r0:r1, c0:c1][near] = np.asarray(confidence, np.float32)[read][nearest[near]]
     return out, conf
+
+
+def _span(values: np.ndarray, reach: float, size: int) -> tuple[int, int]:
+    """The index range [lo, hi) of an axis within `reach` of any of `values`, inside 0..size."""
+    lo = max(int(np.floor(values.min() - reach)), 0)
+    hi = min(int(np.ceil(values.max() + reach)) + 1, size)
+    return lo, hi
