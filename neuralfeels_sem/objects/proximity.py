@@ -75,7 +75,7 @@ def closest_surface_points(
     16, 2.6 s at 8, 1.7 s at 32); points it cannot settle get 4k, and so on."""
     points = np.asarray(points, dtype=np.float64)
     if points.ndim != 2 or points.shape[1] != 3:
-        raise ValueError(f"closest_faces: points must be (N, 3), got {points.shape}")
+        raise ValueError(f"closest-face search: points must be (N, 3), got {points.shape}")
     triangles = np.asarray(mesh.triangles)
     centroids = triangles.mean(axis=1)
     radii = np.linalg.norm(triangles - centroids[:, None], axis=2).max(axis=1)

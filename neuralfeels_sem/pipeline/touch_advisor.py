@@ -121,7 +121,8 @@ class TouchAdvisor:
         self.unconfirmed = np.zeros((0, 3))  # readings to confirm, field frame
         self.mapped = 0
 
-    def on_frame(self, frame: Frame, labels: dict, world_T_object: np.ndarray, mapper) -> None:
+    def on_touches(self, frame: Frame, labels: dict, world_T_object: np.ndarray, mapper) -> None:
+        """A frame's touches (its gel centres, object frame) make their places less novel."""
         object_T_world = invert_pose(world_T_object)
         for finger, label in labels.items():
             reading = frame.tactile.get(finger)
@@ -129,6 +130,9 @@ class TouchAdvisor:
                 continue
             gel = reading.world_T_sensor @ np.array([0.0, 0.0, GEL_DISTANCE_M, 1.0])
             self.touched.append((object_T_world @ gel)[:3])
+
+    def on_frame(self, frame: Frame, labels: dict, world_T_object: np.ndarray, mapper) -> None:
+        self.on_touches(frame, labels, world_T_object, mapper)
         if self.mapped % self.config.every_frames == 0:
             self.surface, self.entropy = surface_samples(mapper.field, self.directions)
         self.mapped += 1

@@ -16,6 +16,7 @@ import numpy as np
 
 from neuralfeels_sem.core.frame import Frame
 from neuralfeels_sem.mapping.se3 import interpolate_pose
+from neuralfeels_sem.pipeline.observers import tell_touches
 from neuralfeels_sem.pipeline.pace import PerceivedFrame, in_contact
 
 
@@ -48,7 +49,7 @@ class OvertakenTouches:
     def add(self, session, riding: list, frame: Frame, world_T_object: np.ndarray) -> int:
         """Map the `riding` touches (`take`) before `frame`, which is mapped with
         `world_T_object`; how many frames' touches were mapped. `session`: the scorer,
-        pose source and mapper of a MappingSession."""
+        pose source, mapper and observers of a MappingSession."""
         own = session.pose_source.reads_frame_pose
         for touch_frame, labels, depths in riding:
             session.scorer.log_touches(touch_frame, labels)
@@ -58,6 +59,7 @@ class OvertakenTouches:
                 else self._between(touch_frame, frame, world_T_object)
             )
             session.mapper.add_touches(touch_frame, labels, pose, depths)
+            tell_touches(session.observers, touch_frame, labels, pose, session.mapper)
         self._last = (frame.time_s, world_T_object)
         return len(riding)
 

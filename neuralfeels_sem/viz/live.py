@@ -108,19 +108,26 @@ class RerunLiveView:
         self.rec.log("world/object", _transform(rr, world_T_object))
         if frame.camera is not None:
             self._log_camera(frame)
-        object_T_world = invert_pose(world_T_object)
         centres = []
         for finger, reading in frame.tactile.items():
             self.rec.log(f"world/hand/{finger}", _transform(rr, reading.world_T_sensor))
-            centre = transform_points(
-                reading.world_T_sensor, np.array([[0.0, 0.0, GEL_DISTANCE_M]])
-            )
-            centres.append(centre[0])
-            label = _touch_class(labels.get(finger))
-            if label != NO_LABEL:
-                self.touches.append((transform_points(object_T_world, centre)[0], label))
+            centres.append(_gel_centre(reading.world_T_sensor))
         if centres:
             self.rec.log("world/hand/gel_centres", rr.Points3D(np.stack(centres), radii=0.003))
+        self.on_touches(frame, labels, world_T_object, mapper)
+
+    def on_touches(self, frame: Frame, labels: dict, world_T_object: np.ndarray, mapper) -> None:
+        """Add the frame's classified touches (gel centres, object frame) and log them all;
+        alone for the touches of a frame the mapper did not take (sensor.pace=realtime)."""
+        rr = self.rr
+        self.rec.set_time("frame", sequence=frame.index)
+        self.rec.set_time("sensor_time", duration=float(frame.time_s))
+        object_T_world = invert_pose(world_T_object)
+        for finger, reading in frame.tactile.items():
+            label = _touch_class(labels.get(finger))
+            if label != NO_LABEL:
+                centre = _gel_centre(reading.world_T_sensor)
+                self.touches.append((transform_points(object_T_world, centre[None])[0], label))
         if self.touches:
             points = np.stack([p for p, _ in self.touches])
             classes = np.array([c for _, c in self.touches])
@@ -175,6 +182,11 @@ class RerunLiveView:
 def _touch_class(label: TouchLabel | None) -> int:
     """Class index of a touch's classification, NO_LABEL without contact or class."""
     return label.label if label is not None and label.contact else NO_LABEL
+
+
+def _gel_centre(world_T_sensor: np.ndarray) -> np.ndarray:
+    """(3,) world point at the centre of a DIGIT's gel."""
+    return transform_points(world_T_sensor, np.array([[0.0, 0.0, GEL_DISTANCE_M]]))[0]
 
 
 def _transform(rr, pose: np.ndarray):

@@ -132,6 +132,16 @@ def test_novelty_from_pressed_counts_an_abstained_press_but_not_a_miss(tmp_path)
     assert advisor.advice.touch_distance(np.array([[0.0, 0.0, RADIUS]]))[0] < 1e-9
 
 
+def test_touches_of_frames_not_mapped_count_without_new_advice(tmp_path) -> None:
+    """sensor.pace=realtime maps the touches of overtaken frames (on_touches): their places
+    are touched, and advice waits for the next mapped frame."""
+    sensor = AdvisedSensor()
+    advisor = TouchAdvisor(TouchAdvisorConfig(surface_points=64), sensor, tmp_path)
+    advisor.on_touches(_frame(0), {"index": TouchLabel("index", True, 2, 0.99)}, np.eye(4), None)
+    np.testing.assert_allclose(advisor.touched, [[0.0, 0.0, RADIUS]], atol=1e-12)
+    assert sensor.advised == [] and advisor.advice is None
+
+
 def test_an_unknown_novelty_source_is_refused() -> None:
     with pytest.raises(ValueError, match="mapping.advisor.novelty_from"):
         TouchAdvisorConfig(novelty_from="seen")

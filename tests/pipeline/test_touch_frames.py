@@ -34,11 +34,24 @@ def test_interpolated_pose_runs_the_constant_motion_between_the_ends() -> None:
         interpolate_pose(start, end, 1.5)
 
 
+class _Listener:
+    """An observer with the optional on_touches hook."""
+
+    def __init__(self) -> None:
+        self.heard = []
+
+    def on_touches(self, frame, labels, world_T_object, mapper) -> None:
+        self.heard.append((frame.index, world_T_object))
+
+
 class _Session:
-    """What OvertakenTouches reads of a MappingSession: scorer, pose source, mapper."""
+    """What OvertakenTouches reads of a MappingSession: scorer, pose source, mapper,
+    observers (one with on_touches, one without)."""
 
     def __init__(self, source: str) -> None:
         self.logged, self.added = [], []
+        self.listener = _Listener()
+        self.observers = [SimpleNamespace(on_frame=None), self.listener]
         self.scorer = SimpleNamespace(log_touches=lambda f, labels: self.logged.append(f.index))
         self.pose_source = SimpleNamespace(reads_frame_pose=source == "gt")
         self.mapper = SimpleNamespace(
@@ -68,6 +81,9 @@ def test_gt_places_each_touch_with_its_own_pose() -> None:
     index, pose, depths = session.added[0]
     assert index == 3 and depths == {"index": 3}
     np.testing.assert_array_equal(pose, touch.world_T_object)
+    # observers with the hook hear of the mapped touches, at the pose they were mapped at
+    assert [i for i, _ in session.listener.heard] == [3]
+    np.testing.assert_array_equal(session.listener.heard[0][1], touch.world_T_object)
 
 
 def test_tracked_touches_take_the_pose_interpolated_in_time() -> None:

@@ -7,18 +7,23 @@ import os
 import subprocess
 import sys
 from pathlib import Path
+from types import SimpleNamespace
 
+import numpy as np
 import pytest
 from hydra.utils import instantiate
 
+from neuralfeels_sem.core.digit import DIGIT_INTRINSICS, GEL_DISTANCE_M
 from neuralfeels_sem.core.errors import ConfigError
+from neuralfeels_sem.core.frame import Frame, TactileReading
 from neuralfeels_sem.core.hand import FINGERS
+from neuralfeels_sem.perception.touch import TouchLabel
 from neuralfeels_sem.sensors.factory import build_sensor
 from neuralfeels_sem.tasks.map import map_object
 from neuralfeels_sem.tasks.preflight import check_live_view
 from neuralfeels_sem.utils.paths import REPO_DIR
 from neuralfeels_sem.utils.seed import seed_everything
-from neuralfeels_sem.viz.live import RRD_NAME, build_live_view
+from neuralfeels_sem.viz.live import RRD_NAME, RerunLiveView, build_live_view
 from tests.helpers import TOY_MAPPING, compose_config
 from tests.reliability.checks import assert_refused
 
@@ -99,6 +104,47 @@ def _map(overrides: list[str], out: Path, live: bool) -> dict:
         return map_object(cfg, obj, sensor, out, observers=observers)
     finally:
         sensor.close()
+
+
+class _Recording:
+    """Stands in for rerun's RecordingStream: keeps what is logged."""
+
+    def __init__(self, name: str) -> None:
+        self.logged = []
+
+    def set_sinks(self, *sinks) -> None:
+        pass
+
+    def set_time(self, *args, **kwargs) -> None:
+        pass
+
+    def log(self, path: str, value, static: bool = False) -> None:
+        self.logged.append((path, value))
+
+
+def test_touches_of_frames_not_mapped_join_the_touches(tmp_path: Path, monkeypatch) -> None:
+    """on_touches (sensor.pace=realtime: a frame the mapper did not take) adds its
+    classified touches to `world/object/touches`, and logs nothing of the camera or hand."""
+    fake = SimpleNamespace(
+        RecordingStream=_Recording, FileSink=str, AnnotationContext=list,
+        Points3D=lambda points, **kwargs: (np.asarray(points), kwargs),
+    )  # fmt: skip
+    monkeypatch.setitem(sys.modules, "rerun", fake)
+    view = RerunLiveView(tmp_path, ["plastic", "fabric"])
+    world_T_sensor = np.eye(4)
+    world_T_sensor[:3, 3] = [0.01, 0.0, 0.0]
+    reading = TactileReading(
+        "index", np.zeros((320, 240, 3), np.uint8), world_T_sensor, DIGIT_INTRINSICS
+    )
+    other = TactileReading("thumb", np.zeros((320, 240, 3), np.uint8), np.eye(4), DIGIT_INTRINSICS)
+    frame = Frame(7, 0.7, np.eye(4), {"index": reading, "thumb": other})
+    labels = {"index": TouchLabel("index", True, 1, 0.99), "thumb": TouchLabel("thumb", False)}
+    view.on_touches(frame, labels, np.eye(4), None)
+    logged = [path for path, _ in view.rec.logged]
+    assert logged == ["world", "world/object/touches"]
+    points, kwargs = view.rec.logged[-1][1]
+    np.testing.assert_allclose(points, [[0.01, 0.0, GEL_DISTANCE_M]])
+    assert list(kwargs["class_ids"]) == [1]
 
 
 def test_a_map_run_streams_a_recording_rerun_reads_back(tmp_path: Path) -> None:
