@@ -21,7 +21,8 @@ class LabelVote:
     """The vote's settings (no defaults here: they are MapperConfig's; see outvoted_touches).
 
     radius 0 switches the vote off; support_radius None means `radius`; press_gap 0 makes
-    every touch a press of its own; steady_frames 0 lets no press back itself.
+    every touch a press of its own; steady_frames 0 lets no press back itself; press_reach
+    None chains a finger's touches into one press however far it slides (see press_events).
     """
 
     radius: float
@@ -31,6 +32,14 @@ class LabelVote:
     press_gap: int
     support_radius: float | None
     steady_frames: int
+    press_reach: float | None
+
+    def __post_init__(self) -> None:
+        if self.press_reach is not None and self.press_reach <= 0:
+            raise ValueError(
+                f"mapping.mapper.label_vote_press_reach={self.press_reach} must be > 0 "
+                "(or null: presses by time alone)"
+            )
 
     @classmethod
     def from_config(cls, config: MapperConfig) -> LabelVote:
@@ -46,6 +55,11 @@ class LabelVote:
                 else float(config.label_vote_support_radius)
             ),
             steady_frames=int(config.label_vote_steady_frames),
+            press_reach=(
+                None
+                if config.label_vote_press_reach is None
+                else float(config.label_vote_press_reach)
+            ),
         )
 
     @property
@@ -59,6 +73,7 @@ class LabelVote:
         fingers: list[str | None],
         frames: list[int],
         touch_of: torch.Tensor | None = None,
+        touch_centroids: torch.Tensor | None = None,
     ) -> torch.Tensor:
         """(T,) bool over labelled touches (centroids (T, 3), labels (T,), in frame order;
         `frames` numbers the frames the mapper took, see TouchBuffer.note_frame).
@@ -66,8 +81,14 @@ class LabelVote:
         With `touch_of` the vote is over items, each one material a touch read (patch
         readings): (I,) centroids and labels of the items and the touch of each; `fingers`
         and `frames` stay per touch, and the items of one touch are one press.
+        `touch_centroids` (touches, 3): where each touch is, for `press_reach` (None: the
+        mean of its items' centroids).
         """
-        events = press_events(fingers, frames, self.press_gap).to(labels.device)
+        where = touch_centroids
+        if where is None and self.press_reach is not None:
+            where = centroids if touch_of is None else _mean_per_touch(centroids, touch_of, len(fingers))
+        events = press_events(fingers, frames, self.press_gap, where, self.press_reach)
+        events = events.to(labels.device)
         frames_per_press = torch.bincount(events)
         if touch_of is not None:
             events = events[touch_of.to(labels.device)]
@@ -83,6 +104,14 @@ class LabelVote:
             self.support_radius,
             steady,
         )
+
+
+def _mean_per_touch(centroids: torch.Tensor, touch_of: torch.Tensor, touches: int) -> torch.Tensor:
+    """(touches, 3) mean of the item centroids of each touch."""
+    touch_of = touch_of.to(centroids.device)
+    sums = centroids.new_zeros(touches, 3).index_add_(0, touch_of, centroids)
+    counts = torch.bincount(touch_of, minlength=touches).clamp_min(1)
+    return sums / counts[:, None].to(centroids.dtype)
 
 
 def steady_presses(
@@ -173,25 +202,44 @@ def outvoted_touches(
     return outvoted
 
 
-def press_events(fingers: list[str | None], frames: list[int], gap: int) -> torch.Tensor:
-    """(T,) press ids: a finger's touches at most `gap` frames after its previous one share it.
+def press_events(
+    fingers: list[str | None],
+    frames: list[int],
+    gap: int,
+    centroids: torch.Tensor | None = None,
+    reach: float | None = None,
+) -> torch.Tensor:
+    """(T,) press ids: a finger's touches at most `gap` frames after its previous one share
+    it, while within `reach` of the press's first touch (`centroids` (T, 3); None: any).
 
+    A press stands for one imprint read over several frames. A finger that slides on
+    (the object turns under it; at realtime pacing the frames mapped lie further apart)
+    reaches other places, and the press ends there: one material read across a border
+    would otherwise be a minority of the long press and never steady (steady_presses).
     Touches must come in frame order. A touch without a finger (None) is a press of its
     own, as is every touch when `gap` < 1.
     """
     if len(fingers) != len(frames):
         raise ValueError(f"{len(fingers)} fingers for {len(frames)} frame indices")
+    if reach is not None and (centroids is None or len(centroids) != len(fingers)):
+        raise ValueError(f"press reach needs one centroid per touch ({len(fingers)})")
+    where = None if reach is None else centroids.detach().double().cpu().numpy()
     ids, last = [], {}
-    for finger, frame in zip(fingers, frames):
+    for t, (finger, frame) in enumerate(zip(fingers, frames)):
         previous = last.get(finger)
-        if (
+        chained = (
             finger is not None
             and gap >= 1
             and previous is not None
             and 0 <= frame - previous[0] <= gap
-        ):
-            ids.append(previous[1])
-        else:
-            ids.append(len(ids))
-        last[finger] = (frame, ids[-1])
+            and (where is None or _within(where[t], where[previous[2]], reach))
+        )
+        start = previous[2] if chained else t
+        ids.append(previous[1] if chained else len(ids))
+        last[finger] = (frame, ids[-1], start)
     return torch.tensor(ids, dtype=torch.long)
+
+
+def _within(a, b, reach: float) -> bool:
+    d = a - b
+    return float(d @ d) <= reach * reach

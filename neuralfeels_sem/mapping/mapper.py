@@ -28,6 +28,7 @@ from neuralfeels_sem.core.materials import DEFAULT_MATERIALS
 from neuralfeels_sem.mapping.batch import MATERIAL_SAMPLINGS, BatchSampler, per_keyframe_losses
 from neuralfeels_sem.mapping.bookkeeping import TrainingLog
 from neuralfeels_sem.mapping.frame_points import CAMERA_MASKS, PointExtractor
+from neuralfeels_sem.mapping.label_vote import LabelVote
 from neuralfeels_sem.mapping.memory import MapMemory
 from neuralfeels_sem.mapping.objective import TERMS, MapperObjective
 from neuralfeels_sem.mapping.press_fusion import PressFusion
@@ -107,6 +108,9 @@ class MapperConfig:
     # 0 = off. 3: on 29 development objects it keeps the one press that is all a small
     # part gets, at a small cost on the shipped objects (docs/field_and_mapper.md).
     label_vote_steady_frames: int = 3
+    # A press ends where its finger has slid this far (metres) from the press's first touch
+    # (label_vote.press_events); null: presses by time alone.
+    label_vote_press_reach: float | None = None
     # Press fusion (press_fusion.py): a touch the classifier abstained on takes the class
     # that the presses within fuse_radius metres read together (at least fuse_min_presses
     # presses, pooled probability >= fuse_confidence), at fuse_weight; fuse_edge: touches
@@ -162,6 +166,7 @@ class MapperConfig:
                 f"mapping.mapper.label_vote_min_agreement={self.label_vote_min_agreement} must be in (0, 1]"
             )
         PressFusion.from_config(self)  # checks the fuse_* settings
+        LabelVote.from_config(self)  # checks label_vote_press_reach
         if self.max_keyframes <= self.window_recent:
             raise ValueError(
                 f"mapping.mapper.max_keyframes={self.max_keyframes} must exceed window_recent ({self.window_recent})"

@@ -58,6 +58,7 @@ class TouchBuffer:
         self._item_touch: list[int] = []
         self._item_label: list[int] = []
         self._item_centroid: list[torch.Tensor] = []
+        self._centroids: list[torch.Tensor] = []  # each touch's point centroid: its place
         self._fingers: list[str | None] = []  # which finger made each touch (None: unknown)
         self._frames: list[int] = []  # frame index of each touch
         # The classifier's class probabilities of each touch ((C,); empty: none, e.g. no
@@ -124,6 +125,7 @@ class TouchBuffer:
         self._at_edge.append(bool(at_edge))
         self.note_frame(frame_index)
         self._points.append(points)
+        self._centroids.append(points.mean(0))
         self._starts.append(self._starts[-1] + n)
         self._axes.append(axis.reshape(1, 3).expand(n, 3).clone())
         self._labels.append(labels)
@@ -217,6 +219,7 @@ class TouchBuffer:
         moved = [t for t, index in enumerate(self._frames) if index == frame_index]
         for t in moved:
             self._points[t] = self._points[t] @ rotation.T + shift
+            self._centroids[t] = self._points[t].mean(0)
             self._axes[t] = self._axes[t] @ rotation.T
         for item, touch in enumerate(self._item_touch):
             if touch in moved:
@@ -254,7 +257,10 @@ class TouchBuffer:
         """(len(touches),) press ids of these touches (in frame order), presses chained
         over them alone (label_vote.press_events)."""
         fingers = [self._fingers[t] for t in touches]
-        return press_events(fingers, self._press_frames(touches), gap).to(self.device)
+        reach = None if self.vote is None else self.vote.press_reach
+        where = torch.stack([self._centroids[t] for t in touches]) if touches else None
+        events = press_events(fingers, self._press_frames(touches), gap, where, reach)
+        return events.to(self.device)
 
     def _touch_of_point(self, device: torch.device) -> torch.Tensor:
         """The touch index of every stored point, in storage order."""
@@ -271,7 +277,8 @@ class TouchBuffer:
         fingers = [self._fingers[t] for t in labelled.tolist()]
         frames = self._press_frames(labelled.tolist())
         centroids = torch.stack(self._item_centroid).to(item_touch.device)
-        return self.vote.outvoted(centroids, item_label, fingers, frames, touch)
+        places = torch.stack([self._centroids[t] for t in labelled.tolist()])
+        return self.vote.outvoted(centroids, item_label, fingers, frames, touch, places)
 
     def point_labels_used(self) -> list[torch.Tensor]:
         """Per touch, its point labels with -1 where the material loss leaves them out.
@@ -371,6 +378,7 @@ class TouchBuffer:
         self.num_touches = int(state["num_touches"])
         self.num_labelled = int(state["num_labelled"])
         self.num_fused = int(state.get("num_fused", 0))
+        self._centroids = [points.mean(0) for points in self._points]
         self._starts = [0]
         for points in self._points:
             self._starts.append(self._starts[-1] + len(points))

@@ -23,7 +23,8 @@ def vote(**settings) -> LabelVote:
     """The vote's rules one at a time: `settings` (radius=..., ...) over a vote with support,
     presses, steady presses and the separate support radius off; the command line's values
     otherwise."""
-    base = {"min_support": 0, "press_gap": 0, "support_radius": None, "steady_frames": 0}
+    base = {"min_support": 0, "press_gap": 0, "support_radius": None, "steady_frames": 0,
+            "press_reach": None}  # fmt: skip
     base.update(settings)
     return LabelVote.from_config(MapperConfig(**{f"label_vote_{k}": v for k, v in base.items()}))
 
@@ -141,6 +142,40 @@ def test_press_events_group_a_fingers_consecutive_frames() -> None:
     assert press_events(fingers, frames, gap=0).tolist() == list(range(7))
     with pytest.raises(ValueError, match="fingers"):
         press_events(fingers, frames[:-1], gap=2)
+
+
+def test_a_press_ends_where_its_finger_has_slid_past_the_reach() -> None:
+    """The index finger slides 4 mm a frame: with a 1 cm reach its press ends at the third
+    frame past the start (1.2 cm away), and the new press measures from there; the ring
+    finger's touches are their own press either way."""
+    fingers = ["index"] * 6 + ["ring"]
+    frames = [0, 1, 2, 3, 4, 5, 1]
+    centroids = torch.tensor([[0.004 * i, 0.0, 0.0] for i in range(6)] + [[0.0, 0.05, 0.0]])
+    assert press_events(fingers, frames, 2).tolist() == [0, 0, 0, 0, 0, 0, 6]
+    split = press_events(fingers, frames, 2, centroids, reach=0.01)
+    assert split.tolist() == [0, 0, 0, 3, 3, 3, 6]
+    with pytest.raises(ValueError, match="one centroid per touch"):
+        press_events(fingers, frames, 2, centroids[:3], reach=0.01)
+    with pytest.raises(ValueError, match="label_vote_press_reach=0.0 must be > 0"):
+        MapperConfig(num_classes=2, label_vote_press_reach=0.0)
+
+
+def test_a_reading_across_a_border_is_steady_in_its_own_press() -> None:
+    """A finger reads fabric for 6 frames as it slides, then plastic for 3 frames 2 cm on:
+    one press by time alone (plastic 3 of 9 frames, not steady, so the lone plastic part is
+    left out), two with a 1 cm reach (plastic steady in its own)."""
+    axis = torch.tensor([0.0, 0.0, 1.0])
+    for reach, plastic_kept in ((None, False), (0.01, True)):
+        touches = TouchBuffer(
+            CPU, vote(radius=0.01, min_support=1, steady_frames=3, press_gap=2, press_reach=reach)
+        )
+        for frame in range(9):
+            x = 0.002 * frame if frame < 6 else 0.03 + 0.001 * frame
+            touches.add(torch.full((4, 3), x), axis, label=2 if frame < 6 else 0, weight=1.0,
+                        finger="index", frame_index=frame)  # fmt: skip
+        used = torch.cat(touches.point_labels_used())
+        assert bool((used == 0).any()) is plastic_kept, reach
+        assert int((used == 2).sum()) == 24  # the fabric frames back themselves either way
 
 
 def test_frames_of_one_press_do_not_back_each_other() -> None:

@@ -56,7 +56,7 @@ def test_each_contact_point_takes_the_label_of_the_pixel_it_came_from() -> None:
 
 def _vote(min_support: int = 0) -> LabelVote:
     return LabelVote(radius=0.01, min_neighbours=3, min_agreement=0.25, min_support=min_support,
-                     press_gap=0, support_radius=0.04, steady_frames=0)  # fmt: skip
+                     press_gap=0, support_radius=0.04, steady_frames=0, press_reach=None)  # fmt: skip
 
 
 AXIS = torch.tensor([0.0, 0.0, 1.0])
@@ -114,7 +114,7 @@ def test_a_geometry_only_touch_does_not_join_two_presses() -> None:
     # 4 frames the two readings are two presses that back each other. Chaining presses
     # over the abstained touch would make them one press that backs nobody.
     vote = LabelVote(radius=0.01, min_neighbours=3, min_agreement=0.25, min_support=1,
-                     press_gap=4, support_radius=0.04, steady_frames=0)  # fmt: skip
+                     press_gap=4, support_radius=0.04, steady_frames=0, press_reach=None)  # fmt: skip
     touches = TouchBuffer(CPU, vote)
     for frame in range(7):  # every frame mapped, as at sensor.pace=offline
         touches.note_frame(frame)

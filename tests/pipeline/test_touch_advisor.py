@@ -168,7 +168,7 @@ def test_a_reading_left_out_by_the_vote_draws_the_next_press_with_the_confirm_te
     from neuralfeels_sem.sim.touch_planner import TouchScoreConfig
 
     vote = LabelVote(radius=0.01, min_neighbours=3, min_agreement=0.25, min_support=1,
-                     press_gap=0, support_radius=0.04, steady_frames=0)  # fmt: skip
+                     press_gap=0, support_radius=0.04, steady_frames=0, press_reach=None)  # fmt: skip
     side = [0.0, (RADIUS**2 - 0.01**2) ** 0.5, 0.01]  # on the certain upper half
     lone = torch.tensor([side] * 4, dtype=torch.float32)  # fabric read once there
 
