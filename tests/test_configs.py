@@ -161,3 +161,18 @@ def test_the_default_sim_motion_is_the_one_bench_and_rig_touches_use() -> None:
     rig = SimRig(two_material_sphere(0.04), **motion)
     rig.open()
     assert len(rig.trajectory.axes) == 2
+
+
+@pytest.mark.parametrize(
+    ("overrides", "reach"),
+    [
+        ([], None),  # sim at its offline pace: presses by time alone
+        (["sensor.pace=realtime"], 0.01),
+        (["sensor=real"], 0.01),  # a rig streams
+        (["sensor=real", "sensor.pace=offline"], None),
+        (["sensor.pace=realtime", "mapping.mapper.label_vote_press_reach=null"], None),
+        (["mapping.mapper.label_vote_press_reach=0.02"], 0.02),
+    ],
+)
+def test_the_press_reach_follows_the_pace_unless_set(overrides: list[str], reach) -> None:
+    assert compose_config(overrides).mapping.mapper.label_vote_press_reach == reach

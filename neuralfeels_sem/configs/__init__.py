@@ -68,6 +68,11 @@ def register_configs() -> None:
             "resume_run_dir",
             lambda resume, default: str(Path(resume).parent) if resume else default,
         )
+    # ${at_pace:pace,offline_value,realtime_value}: a setting that depends on sensor.pace.
+    if not OmegaConf.has_resolver("at_pace"):
+        OmegaConf.register_new_resolver(
+            "at_pace", lambda pace, offline, realtime: offline if pace == "offline" else realtime
+        )
     if not OmegaConf.has_resolver("config_subdir"):
         OmegaConf.register_new_resolver("config_subdir", config_subdir)
     cs = ConfigStore.instance()

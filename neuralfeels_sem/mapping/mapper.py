@@ -109,7 +109,8 @@ class MapperConfig:
     # part gets, at a small cost on the shipped objects (docs/field_and_mapper.md).
     label_vote_steady_frames: int = 3
     # A press ends where its finger has slid this far (metres) from the press's first touch
-    # (label_vote.press_events); null: presses by time alone.
+    # (label_vote.press_events); null: presses by time alone. conf/mapping/online.yaml sets
+    # 0.01 at sensor.pace=realtime.
     label_vote_press_reach: float | None = None
     # Press fusion (press_fusion.py): a touch the classifier abstained on takes the class
     # that the presses within fuse_radius metres read together (at least fuse_min_presses
