@@ -86,7 +86,11 @@ class LabelVote:
         """
         where = touch_centroids
         if where is None and self.press_reach is not None:
-            where = centroids if touch_of is None else _mean_per_touch(centroids, touch_of, len(fingers))
+            where = (
+                centroids
+                if touch_of is None
+                else _mean_per_touch(centroids, touch_of, len(fingers))
+            )
         events = press_events(fingers, frames, self.press_gap, where, self.press_reach)
         events = events.to(labels.device)
         frames_per_press = torch.bincount(events)
