@@ -218,6 +218,7 @@ class PointExtractor:
             "segmentation": dataclasses.asdict(self.stats),
             "depth_counts": dataclasses.asdict(self.depth_counts),
             "tactile_readings_scored": self.tactile_readings_scored,
+            "tactile_readings_unchanged": self.tactile_depth.unchanged,
         }
 
     def load_state_dict(self, state: dict | None) -> None:
@@ -227,6 +228,8 @@ class PointExtractor:
         self.stats = SegmentationStats(**state["segmentation"])
         self.depth_counts = DepthCounts(**state["depth_counts"])
         self.tactile_readings_scored = int(state["tactile_readings_scored"])
+        # Checkpoints from before the no-change test: none skipped the network.
+        self.tactile_depth.unchanged = int(state.get("tactile_readings_unchanged", 0))
 
     def perception_summary(self) -> dict:
         """metrics.json["perception"]: how the perceived inputs compare with the simulator's
@@ -241,6 +244,9 @@ class PointExtractor:
             "segmentation_ms_mean": camera["segmentation_ms_mean"],
             "tactile_depth_source": self.tactile_depth.source,
             "tactile_readings_scored": self.tactile_readings_scored,
+            "tactile_readings_unchanged": (
+                self.tactile_depth.unchanged if self.tactile_depth.source == "net" else None
+            ),
             "tactile_contact_iou": tactile["contact_iou"],
             "tactile_depth_mae_mm": tactile["depth_mae_mm"],
         }

@@ -91,6 +91,7 @@ class TactileDepth:
         self.net = DepthNetPredictor(
             config.checkpoint, self.min_contact_px, device, cpu_runtime=config.cpu_runtime
         )
+        self.unchanged = 0  # readings that showed no change and skipped the network
 
     def load(self) -> None:
         """Load the network now (source=net; else nothing to load), not on the first touch."""
@@ -119,6 +120,7 @@ class TactileDepth:
         backgrounds = [self._background(r.background, r.finger) for r in readings]
         depths = [np.zeros(r.image.shape[:2], np.float32) for r in readings]
         changed = [i for i, (r, bg) in enumerate(zip(readings, backgrounds)) if shows_change(r.image, bg)]  # fmt: skip
+        self.unchanged += len(readings) - len(changed)
         if changed:
             images = np.stack([readings[i].image for i in changed])
             predicted = self.net.predict(images, np.stack([backgrounds[i] for i in changed]))

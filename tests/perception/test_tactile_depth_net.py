@@ -165,6 +165,7 @@ def test_frames_without_change_skip_the_network(monkeypatch: pytest.MonkeyPatch)
     assert depths[0].min() == depths[2].min() == 0.02
     assert depths[1].shape == (320, 240) and depths[1].dtype == np.float32 and not depths[1].any()
     assert not source(readings[1]).any() and batches == [2]
+    assert source.unchanged == 2  # counted for metrics.json (perception)
 
 
 def test_load_reads_the_network_only_for_the_net_source() -> None:

@@ -149,6 +149,7 @@ def test_map_reads_every_figure_against_the_majority_map(tiny_run: Path) -> None
     assert perception["camera_frames_segmented"] == metrics["frames"]
     assert perception["camera_mask_iou"] > 0.8  # scored against the simulator's mask
     assert perception["tactile_readings_scored"] > 0
+    assert 0 <= perception["tactile_readings_unchanged"] <= perception["tactile_readings_scored"]
     assert 0.0 <= perception["tactile_depth_mae_mm"] < 1.0
     assert 0.0 <= metrics["matching_mesh_pct"] <= 100.0
     assert 0.0 <= metrics["matching_miou_pct"] <= 100.0
