@@ -258,7 +258,7 @@ class TouchBuffer:
         over them alone (label_vote.press_events)."""
         fingers = [self._fingers[t] for t in touches]
         reach = None if self.vote is None else self.vote.press_reach
-        where = torch.stack([self._centroids[t] for t in touches]) if touches else None
+        where = None if reach is None else self._places(touches)
         events = press_events(fingers, self._press_frames(touches), gap, where, reach)
         return events.to(self.device)
 
@@ -277,8 +277,14 @@ class TouchBuffer:
         fingers = [self._fingers[t] for t in labelled.tolist()]
         frames = self._press_frames(labelled.tolist())
         centroids = torch.stack(self._item_centroid).to(item_touch.device)
-        places = torch.stack([self._centroids[t] for t in labelled.tolist()])
+        places = None if self.vote.press_reach is None else self._places(labelled.tolist())
         return self.vote.outvoted(centroids, item_label, fingers, frames, touch, places)
+
+    def _places(self, touches: list[int]) -> torch.Tensor:
+        """(len(touches), 3) the touches' point centroids (for the vote's press reach)."""
+        if not touches:
+            return torch.zeros(0, 3, device=self.device)
+        return torch.stack([self._centroids[t] for t in touches])
 
     def point_labels_used(self) -> list[torch.Tensor]:
         """Per touch, its point labels with -1 where the material loss leaves them out.
