@@ -81,16 +81,10 @@ class LabelVote:
         With `touch_of` the vote is over items, each one material a touch read (patch
         readings): (I,) centroids and labels of the items and the touch of each; `fingers`
         and `frames` stay per touch, and the items of one touch are one press.
-        `touch_centroids` (touches, 3): where each touch is, for `press_reach` (None: the
-        mean of its items' centroids).
+        `touch_centroids` (touches, 3): where each touch is, for `press_reach` (needed with
+        `touch_of`; without it the centroids are the touches').
         """
-        where = touch_centroids
-        if where is None and self.press_reach is not None:
-            where = (
-                centroids
-                if touch_of is None
-                else _mean_per_touch(centroids, touch_of, len(fingers))
-            )
+        where = centroids if touch_centroids is None and touch_of is None else touch_centroids
         events = press_events(fingers, frames, self.press_gap, where, self.press_reach)
         events = events.to(labels.device)
         frames_per_press = torch.bincount(events)
@@ -108,14 +102,6 @@ class LabelVote:
             self.support_radius,
             steady,
         )
-
-
-def _mean_per_touch(centroids: torch.Tensor, touch_of: torch.Tensor, touches: int) -> torch.Tensor:
-    """(touches, 3) mean of the item centroids of each touch."""
-    touch_of = touch_of.to(centroids.device)
-    sums = centroids.new_zeros(touches, 3).index_add_(0, touch_of, centroids)
-    counts = torch.bincount(touch_of, minlength=touches).clamp_min(1)
-    return sums / counts[:, None].to(centroids.dtype)
 
 
 def steady_presses(

@@ -119,7 +119,8 @@ class TactileDepth:
             return [self(r) for r in readings]
         backgrounds = [self._background(r.background, r.finger) for r in readings]
         depths = [np.zeros(r.image.shape[:2], np.float32) for r in readings]
-        changed = [i for i, (r, bg) in enumerate(zip(readings, backgrounds)) if shows_change(r.image, bg)]  # fmt: skip
+        pairs = enumerate(zip(readings, backgrounds))
+        changed = [i for i, (r, bg) in pairs if shows_change(r.image, bg)]
         self.unchanged += len(readings) - len(changed)
         if changed:
             images = np.stack([readings[i].image for i in changed])

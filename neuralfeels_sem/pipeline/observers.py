@@ -5,8 +5,8 @@ classifier gave its touches and the pose the frame was mapped at), after each sc
 and once at the end. An observer that also defines `on_touches` (same arguments as
 `on_frame`) hears of the touches of frames the mapper did not take, mapped before the next
 frame at sensor.pace=realtime (pipeline/touch_frames.py): those frames are not mapped
-frames, so `on_frame` is not called for them. Observers read the mapper; they never change it, so a run with and
-without observers maps the same frames to the same field.
+frames, so `on_frame` is not called for them. Observers read the mapper; they never change
+it, so a run with and without observers maps the same frames to the same field.
 """
 
 from __future__ import annotations

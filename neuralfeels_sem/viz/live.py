@@ -103,8 +103,7 @@ class RerunLiveView:
 
     def on_frame(self, frame: Frame, labels: dict, world_T_object: np.ndarray, mapper) -> None:
         rr = self.rr
-        self.rec.set_time("frame", sequence=frame.index)
-        self.rec.set_time("sensor_time", duration=float(frame.time_s))
+        self.on_touches(frame, labels, world_T_object, mapper)  # sets the frame's time too
         self.rec.log("world/object", _transform(rr, world_T_object))
         if frame.camera is not None:
             self._log_camera(frame)
@@ -114,7 +113,6 @@ class RerunLiveView:
             centres.append(_gel_centre(reading.world_T_sensor))
         if centres:
             self.rec.log("world/hand/gel_centres", rr.Points3D(np.stack(centres), radii=0.003))
-        self.on_touches(frame, labels, world_T_object, mapper)
 
     def on_touches(self, frame: Frame, labels: dict, world_T_object: np.ndarray, mapper) -> None:
         """Add the frame's classified touches (gel centres, object frame) and log them all;
