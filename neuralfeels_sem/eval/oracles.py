@@ -7,6 +7,9 @@ results page lists them per source, so a sim figure says what it leaned on.
 from __future__ import annotations
 
 from collections.abc import Mapping
+from pathlib import Path
+
+from neuralfeels_sem.sensors.replay.recording_files import recorded_sensor_config
 
 # What each oracle is (names as metrics.json["oracles"]).
 ORACLES = {
@@ -18,10 +21,20 @@ ORACLES = {
 }
 
 
+# A replay of a recording of a replay ... is followed back this many recordings at most.
+MAX_REPLAYS_BACK = 8
+
+
 def oracles_used(config: Mapping) -> list[str]:
-    """The oracles of a composed run config (a DictConfig or the plain dict of .hydra/config.yaml)."""
-    sensor = config.get("sensor") or {}
-    if sensor.get("name") != "sim":
+    """The oracles of a composed run config (a DictConfig or the plain dict of .hydra/config.yaml).
+
+    A replay of a recording the simulator made leans on the simulator's ground truth as the
+    simulated run would (its poses, masks and depths are the simulator's), judged with the
+    sensor config it was recorded with; a rig, or a recording that does not say where it
+    came from, has none.
+    """
+    sensor = simulated_sensor(config.get("sensor") or {})
+    if sensor is None:
         return []
     mapping = config.get("mapping") or {}
     mapper = mapping.get("mapper") or {}
@@ -41,3 +54,19 @@ def oracles_used(config: Mapping) -> list[str]:
         "material_labels": classifier.endswith("OracleClassifier"),
     }
     return [name for name, on in used.items() if on]
+
+
+def simulated_sensor(sensor: Mapping) -> Mapping | None:
+    """The simulator's sensor config behind `sensor`: itself for sensor=sim; for a replay of a
+    native recording, the sensor config the recording was made with, followed back through
+    replays of replays; None for a rig, a FeelSight log or a recording without its config."""
+    for _ in range(MAX_REPLAYS_BACK):
+        if sensor.get("name") == "sim":
+            return sensor
+        native = sensor.get("format", "native") == "native"
+        if sensor.get("name") != "replay" or not native or not sensor.get("recording"):
+            return None
+        sensor = recorded_sensor_config(Path(str(sensor.get("recording"))).expanduser())
+        if sensor is None:
+            return None
+    return None

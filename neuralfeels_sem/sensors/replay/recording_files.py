@@ -44,6 +44,21 @@ def read_meta(path: Path) -> dict:
     return meta
 
 
+def recorded_sensor_config(recording: Path) -> dict | None:
+    """The sensor config a recording was made with (meta.json's `config.sensor`, written by
+    task=record); None when the recording, its meta.json or that key is missing or unreadable."""
+    meta_path = Path(recording) / "meta.json"
+    if not meta_path.is_file():
+        return None
+    try:
+        meta = read_meta(meta_path)
+    except DataError:
+        return None
+    config = meta.get("config")
+    sensor = config.get("sensor") if isinstance(config, dict) else None
+    return sensor if isinstance(sensor, dict) else None
+
+
 def read_records(path: Path) -> list[dict]:
     """frames.jsonl's records; a damaged line becomes {"index": its guessed index,
     "damaged": why} (frames are numbered consecutively, so it is the one after the last)."""
