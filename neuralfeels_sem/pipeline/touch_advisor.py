@@ -1,14 +1,16 @@
 """The touch advisor: a mapping-session observer that says where the hand should touch next.
 
-After every mapped frame it samples the map's surface (points of a sphere around the
-field's centre, moved onto the SDF's zero level by Newton steps), takes the material
-branch's normalised entropy there, keeps the touches so far (the presses with a label, or
-every press: `novelty_from`), and packs them into
-a TouchAdvice (sim/touch_planner.py) that scores object-frame points by uncertainty and
-novelty. With sensor.policy=active the simulated sensor is handed the advice and presses
-where it scores highest; on any other rig (sensor=real, replay) the best `top_k` surface
-points are written to the run as `touch_suggestions.json` (and drawn in
-`touch_suggestions.png`) for whatever moves the hand. The advisor only reads the field.
+It keeps the touches so far (the presses with a label, or every press: `novelty_from`)
+and, when advice is asked for, samples the map's surface as it is after the latest mapped
+frame (points of a sphere around the field's centre, moved onto the SDF's zero level by
+Newton steps), takes the material branch's normalised entropy there, and packs both into a
+TouchAdvice (sim/touch_planner.py) that scores object-frame points by uncertainty and
+novelty. With sensor.policy=active the simulated sensor asks after every mapped frame and
+presses where the advice scores highest; on any other rig (sensor=real, replay) the best
+`top_k` surface points are written to the run as `touch_suggestions.json` at every scoring
+pass and at the end (and drawn in `touch_suggestions.png`) for whatever moves the hand, and
+the surface is sampled only then: sampling it after every frame took about as long as the
+optimiser's steps on a replay. The advisor only reads the field.
 """
 
 from __future__ import annotations
@@ -116,10 +118,24 @@ class TouchAdvisor:
         self.touched: list[np.ndarray] = []  # touches counted for novelty, field frame
         self.surface = np.zeros((0, 3))
         self.entropy = np.zeros(0)
-        self.advice: TouchAdvice | None = None
         self.world_T_field = np.eye(4)  # the latest frame's object pose (the field's frame)
         self.unconfirmed = np.zeros((0, 3))  # readings to confirm, field frame
         self.mapped = 0
+        self._advice: TouchAdvice | None = None
+        self._latest: tuple[Frame, object] | None = None  # the latest mapped frame, mapper
+        self._advised_upto = -1  # `mapped` count the advice was made at
+        self._sampled_at: int | None = None  # `mapped` count the surface was sampled at
+
+    @property
+    def advice(self) -> TouchAdvice | None:
+        """The advice after the latest mapped frame (None before the first), made when first
+        asked for: a sensor that takes advice asks after every frame; on any other rig only
+        the suggestions written at each scoring pass and at the end ask, so the surface is
+        not sampled after frames nobody reads advice for."""
+        if self._latest is not None and self._advised_upto < self.mapped:
+            self._advice = self._make_advice(*self._latest)
+            self._advised_upto = self.mapped
+        return self._advice
 
     def on_touches(self, frame: Frame, labels: dict, world_T_object: np.ndarray, mapper) -> None:
         """A frame's touches (its gel centres, object frame) make their places less novel."""
@@ -133,16 +149,24 @@ class TouchAdvisor:
 
     def on_frame(self, frame: Frame, labels: dict, world_T_object: np.ndarray, mapper) -> None:
         self.on_touches(frame, labels, world_T_object, mapper)
-        if self.mapped % self.config.every_frames == 0:
-            self.surface, self.entropy = surface_samples(mapper.field, self.directions)
-        self.mapped += 1
         self.world_T_field = np.asarray(world_T_object, np.float64)
+        self._latest = (frame, mapper)
+        self.mapped += 1
+        if getattr(self.sensor, "accepts_advice", False):
+            self.sensor.advise(frame.index, self.advice)
+
+    def _make_advice(self, frame: Frame, mapper) -> TouchAdvice:
+        """The advice from the field as it is now, after `frame` (the latest mapped)."""
+        due = self._sampled_at is None or self.mapped - self._sampled_at >= self.config.every_frames
+        if due:
+            self.surface, self.entropy = surface_samples(mapper.field, self.directions)
+            self._sampled_at = self.mapped
         # The sensor plans in its own object frame: the true one in sim (the field's frame
         # is the estimated one when the pose is tracked).
         truth = frame.gt_world_T_object
         sensor_T_field = np.eye(4) if truth is None else invert_pose(truth) @ self.world_T_field
         self.unconfirmed = self._unconfirmed(mapper)
-        self.advice = TouchAdvice(
+        return TouchAdvice(
             _apply(sensor_T_field, self.surface),
             self.entropy,
             _apply(sensor_T_field, np.array(self.touched).reshape(-1, 3)),
@@ -150,8 +174,6 @@ class TouchAdvisor:
             frame.index,
             _apply(sensor_T_field, self.unconfirmed),
         )
-        if getattr(self.sensor, "accepts_advice", False):
-            self.sensor.advise(frame.index, self.advice)
 
     def _unconfirmed(self, mapper) -> np.ndarray:
         """(K, 3) readings the vote left out that a press should confirm (field frame):
@@ -175,14 +197,15 @@ class TouchAdvisor:
 
     def write(self, picture: bool = False) -> None:
         """touch_suggestions.json (and the picture): the best surface points to touch next."""
-        if self.advice is None:
+        latest = self.advice
+        if latest is None:
             return
         advice = TouchAdvice(
             self.surface,
             self.entropy,
             np.array(self.touched).reshape(-1, 3),
             self.config.score,
-            self.advice.frame_index,
+            latest.frame_index,
             self.unconfirmed,
         )
         points, scores = advice.suggestions(self.config.top_k)

@@ -114,6 +114,47 @@ def test_advice_reaches_the_sensor_and_suggestions_point_at_the_uncertain_half(t
     assert (tmp_path / "touch_suggestions.png").stat().st_size > 0
 
 
+def test_a_rig_samples_the_surface_only_when_suggestions_are_written(tmp_path, monkeypatch):
+    """Without a sensor that takes advice (sensor=real, replay) nothing reads the advice
+    between the written suggestions: three frames mapped, one sampling, at the write."""
+    import neuralfeels_sem.pipeline.touch_advisor as advisor_module
+
+    calls = []
+    sample = advisor_module.surface_samples
+    monkeypatch.setattr(advisor_module, "surface_samples", lambda *a: calls.append(1) or sample(*a))
+    advisor = TouchAdvisor(TouchAdvisorConfig(surface_points=256, top_k=4), None, tmp_path)
+    label = TouchLabel("index", True, 2, 0.99)
+    for i in range(3):
+        advisor.on_frame(_frame(i), {"index": label}, np.eye(4), Mapper())
+    assert calls == []
+    advisor.on_scores(2, None, Mapper())
+    advisor.close()  # nothing mapped since: the same samples
+    assert len(calls) == 1
+    report = json.loads((tmp_path / SUGGESTIONS_FILE).read_text())
+    assert report["after_frame"] == 2 and report["touches_counted"] == 3
+    assert all(s["point_object_m"][2] < 0 for s in report["suggestions"])
+    advisor.on_frame(_frame(3), {"index": label}, np.eye(4), Mapper())
+    advisor.write()
+    assert (
+        len(calls) == 2
+        and json.loads((tmp_path / SUGGESTIONS_FILE).read_text())["after_frame"] == 3
+    )
+
+
+def test_every_frames_spaces_the_samplings_of_an_advised_sensor(tmp_path, monkeypatch):
+    import neuralfeels_sem.pipeline.touch_advisor as advisor_module
+
+    calls = []
+    sample = advisor_module.surface_samples
+    monkeypatch.setattr(advisor_module, "surface_samples", lambda *a: calls.append(1) or sample(*a))
+    sensor = AdvisedSensor()
+    config = TouchAdvisorConfig(surface_points=64, every_frames=2)
+    advisor = TouchAdvisor(config, sensor, tmp_path)
+    for i in range(5):
+        advisor.on_frame(_frame(i), {}, np.eye(4), Mapper())
+    assert len(sensor.advised) == 5 and len(calls) == 3  # after frames 0, 2 and 4
+
+
 def test_a_touch_without_a_usable_label_is_not_counted(tmp_path) -> None:
     advisor = TouchAdvisor(TouchAdvisorConfig(surface_points=64), AdvisedSensor(), tmp_path)
     advisor.on_frame(_frame(0), {"index": TouchLabel("index", False)}, np.eye(4), Mapper())
