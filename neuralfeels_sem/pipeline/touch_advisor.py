@@ -122,8 +122,7 @@ class TouchAdvisor:
         self.unconfirmed = np.zeros((0, 3))  # readings to confirm, field frame
         self.mapped = 0
         self._advice: TouchAdvice | None = None
-        self._latest: tuple[Frame, object] | None = None  # the latest mapped frame, mapper
-        self._advised_upto = -1  # `mapped` count the advice was made at
+        self._pending: tuple[Frame, object] | None = None  # a frame mapped since, its mapper
         self._sampled_at: int | None = None  # `mapped` count the surface was sampled at
 
     @property
@@ -132,9 +131,8 @@ class TouchAdvisor:
         asked for: a sensor that takes advice asks after every frame; on any other rig only
         the suggestions written at each scoring pass and at the end ask, so the surface is
         not sampled after frames nobody reads advice for."""
-        if self._latest is not None and self._advised_upto < self.mapped:
-            self._advice = self._make_advice(*self._latest)
-            self._advised_upto = self.mapped
+        if self._pending is not None:
+            self._advice, self._pending = self._make_advice(*self._pending), None
         return self._advice
 
     def on_touches(self, frame: Frame, labels: dict, world_T_object: np.ndarray, mapper) -> None:
@@ -150,7 +148,7 @@ class TouchAdvisor:
     def on_frame(self, frame: Frame, labels: dict, world_T_object: np.ndarray, mapper) -> None:
         self.on_touches(frame, labels, world_T_object, mapper)
         self.world_T_field = np.asarray(world_T_object, np.float64)
-        self._latest = (frame, mapper)
+        self._pending = (frame, mapper)
         self.mapped += 1
         if getattr(self.sensor, "accepts_advice", False):
             self.sensor.advise(frame.index, self.advice)
