@@ -92,6 +92,8 @@ class CustomObjectConfig:
     # Per-face label file; null: `material`, or else `<mesh stem>.labels.{json,npy}` beside the mesh.
     labels: str | None = None
     material: str | None = None  # one material for the whole mesh
+    # Draw a generated layout (2-4 materials, as object=random's) onto the mesh from this seed.
+    layout_seed: int | None = None
     rescale_to: float | None = None  # largest extent in metres after rescaling; null keeps the size
     name: str = "${file_stem:${.mesh}}"
     class_names: list[str] = field(default_factory=lambda: list(DEFAULT_MATERIALS))
@@ -103,10 +105,11 @@ class CustomObjectConfig:
             raise ValueError(
                 f"object.rescale_to={self.rescale_to} must be in (0, 1] metres, or null"
             )
-        if self.labels is not None and self.material is not None:
-            raise ValueError(
-                f"object.labels={self.labels} and object.material={self.material} are both set: pick one"
-            )
+        given = {"layout_seed": self.layout_seed, "labels": self.labels, "material": self.material}
+        given = {k: v for k, v in given.items() if v is not None}
+        if len(given) > 1:
+            (a, x), (b, y), *_ = given.items()
+            raise ValueError(f"object.{a}={x} and object.{b}={y} are both set: pick one")
 
 
 @dataclass

@@ -1,13 +1,17 @@
-"""`object=custom`: any obj/ply/stl mesh with per-face labels or one material.
+"""`object=custom`: any obj/ply/stl mesh with per-face labels, one material, or a drawn layout.
 
 The mesh's duplicate vertices are merged (scanned meshes such as YCB's split them at
 texture seams) before the watertight check; labels follow the file's face order.
+`layout_seed` paints the generated objects' kind of layout (2-4 materials in patches,
+bands, halves and inserts; layout_draw.py) onto the mesh: a user's own shape with a
+material ground truth nobody tuned on.
 """
 
 from __future__ import annotations
 
 import logging
 from collections.abc import Sequence
+from dataclasses import dataclass, field
 from pathlib import Path
 
 import numpy as np
@@ -16,8 +20,9 @@ import trimesh
 from neuralfeels_sem.core.errors import ConfigError, DataError
 from neuralfeels_sem.core.limits import MUJOCO_MAX_FACES
 from neuralfeels_sem.objects.label_files import read_labels
+from neuralfeels_sem.objects.layout_draw import draw_on_mesh
 from neuralfeels_sem.objects.material_object import MaterialObject
-from neuralfeels_sem.objects.materials import class_index, mass_and_friction
+from neuralfeels_sem.objects.materials import class_index, mass_and_friction, names_to_labels
 from neuralfeels_sem.utils.paths import REPO_DIR
 
 log = logging.getLogger(__name__)
@@ -105,12 +110,23 @@ def clean_mesh(
     return mesh, labels
 
 
-def _check_options(labels: str | None, material: str | None, rescale_to: float | None) -> None:
-    """Reject a config that sets both object.labels and object.material, or a non-positive rescale."""
-    if labels is not None and material is not None:
-        raise ConfigError(
-            f"object.labels={labels} and object.material={material} are both set: pick one"
-        )
+@dataclass
+class LaidOutObject(MaterialObject):
+    """A custom mesh with a drawn layout: `layout` records the mesh name, size, layout
+    seed, sub-seed used, materials and region kinds (metrics.json config.object_layout)."""
+
+    layout: dict = field(default_factory=dict)
+
+
+def _check_options(
+    labels: str | None, material: str | None, rescale_to: float | None, layout_seed: int | None
+) -> None:
+    """Reject a config that sets more than one label source, or a non-positive rescale."""
+    given = {"layout_seed": layout_seed, "labels": labels, "material": material}
+    given = {k: v for k, v in given.items() if v is not None}
+    if len(given) > 1:
+        (a, x), (b, y), *_ = given.items()
+        raise ConfigError(f"object.{a}={x} and object.{b}={y} are both set: pick one")
     if rescale_to is not None and rescale_to <= 0:
         raise ConfigError(f"object.rescale_to={rescale_to} must be > 0 metres, or null")
 
@@ -173,31 +189,42 @@ def load_custom_object(
     rescale_to: float | None = None,
     name: str | None = None,
     aruco: object = None,
+    layout_seed: int | None = None,
 ) -> MaterialObject:
     """Load a mesh file as a MaterialObject centred on its bounding-box centre.
 
-    Labels come from `labels` (npy/json), or `material` for the whole mesh, or a
+    Labels come from `labels` (npy/json), or `material` for the whole mesh, or a layout
+    drawn from `layout_seed` over every class (a LaidOutObject), or a
     `<stem>.labels.{json,npy}` file beside the mesh. `rescale_to` scales the mesh
     uniformly so its largest extent is that many metres. `aruco` (object.aruco, the
     marker layout) is read by sensor=real from the config; it is accepted here only so the
     object config instantiates.
     """
     class_names = tuple(class_names)
-    _check_options(labels, material, rescale_to)
+    _check_options(labels, material, rescale_to, layout_seed)
     mesh_path = resolve_path(mesh, "object.mesh")
-    index, label_path = _label_source(mesh_path, labels, material, class_names)
+    drawn = layout_seed is not None
+    index, label_path = (
+        (0, None) if drawn else _label_source(mesh_path, labels, material, class_names)
+    )
     raw = read_mesh(mesh_path)
+    # a drawn layout is painted once the mesh is cleaned and scaled (its regions are in metres)
     face_labels = _face_labels(raw, mesh_path, index, label_path, class_names)
     clean, face_labels = clean_mesh(raw, face_labels, mesh_path)
     _centre_and_scale(clean, mesh_path, rescale_to)
+    name = name or mesh_path.stem
+    record = None
+    if drawn:
+        what = f"object.mesh={mesh_path}"
+        names, record = draw_on_mesh(clean, int(layout_seed), class_names, what)
+        face_labels = names_to_labels(names, class_names, what=what)
+        record = {"mesh": name, "size_m": round(float(clean.extents.max()), 4), **record}
+        log.info("object=custom layout: %s", record)
+    body = None if record is None else record["materials"][0]
     mass, friction = mass_and_friction(
-        float(clean.volume), np.asarray(clean.area_faces), face_labels, class_names
+        float(clean.volume), np.asarray(clean.area_faces), face_labels, class_names, body
     )
-    return MaterialObject(
-        name=name or mesh_path.stem,
-        mesh=clean,
-        face_labels=face_labels,
-        class_names=class_names,
-        mass_kg=mass,
-        friction=friction,
-    )
+    parts = dict(name=name, mesh=clean, face_labels=face_labels, class_names=class_names)
+    if record is None:
+        return MaterialObject(**parts, mass_kg=mass, friction=friction)
+    return LaidOutObject(**parts, mass_kg=mass, friction=friction, layout=record)

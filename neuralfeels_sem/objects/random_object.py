@@ -21,23 +21,17 @@ import numpy as np
 import trimesh
 
 from neuralfeels_sem.core.errors import ConfigError, DataError
-from neuralfeels_sem.objects import disk_cache
+from neuralfeels_sem.objects import disk_cache, layout_draw
 from neuralfeels_sem.objects import sdf as S
+from neuralfeels_sem.objects.layout_draw import layout_problems, paint
 from neuralfeels_sem.objects.material_object import MaterialObject
-from neuralfeels_sem.objects.materials import IGNORE_NAME, mass_and_friction, names_to_labels
-from neuralfeels_sem.objects.procedural import BOTTOM_BAND, SEAM
+from neuralfeels_sem.objects.materials import mass_and_friction, names_to_labels
 from neuralfeels_sem.objects.random_layouts import draw_layout
 from neuralfeels_sem.objects.random_shapes import FAMILIES
-from neuralfeels_sem.objects.regions import Region, label_faces, small_islands
 
 log = logging.getLogger(__name__)
 
 SIZE_RANGE_M = (0.05, 0.20)  # largest extent of every generated object
-# Every connected patch of a material covers at least this (m^2): about half a DIGIT
-# gel (1.8 x 2.4 cm), the size of patchwork's badge. Smaller ones cannot be scored fairly.
-MIN_PATCH_AREA_M2 = 2e-4
-MIN_LABELLED_SHARE = 0.6  # of the surface area inside the regions of interest
-MAX_SUB_SEEDS = 50
 TARGET_FACES = 20_000  # as the shipped objects (the 1 mm tactile renderer sees smooth geometry)
 _DRAW_BOX_M = 0.2  # families draw inside +-this box before scaling
 # The cache key hashes these (procedural.py: the seam and resting-face widths).
@@ -45,6 +39,7 @@ _GENERATOR_SOURCES = (
     "random_object.py",
     "random_shapes.py",
     "random_layouts.py",
+    "layout_draw.py",
     "sdf.py",
     "regions.py",
     "procedural.py",
@@ -79,24 +74,14 @@ def _draw_mesh(rng: np.random.Generator, family: str, target_faces: int) -> trim
 
 
 def problems(mesh: trimesh.Trimesh, names: np.ndarray, materials: Sequence[str]) -> list[str]:
-    """Why a drawn object cannot be used (empty: it can)."""
+    """Why a drawn object cannot be used (empty: it can): its shape's checks, then its layout's."""
     found = []
     if not mesh.is_watertight:
         found.append("not watertight")
     size = float(mesh.extents.max())
     if not SIZE_RANGE_M[0] <= size <= SIZE_RANGE_M[1]:
         found.append(f"largest extent {100 * size:.1f} cm outside {SIZE_RANGE_M} m")
-    unique, inverse = np.unique(names, return_inverse=True)
-    present = dict(zip(unique, np.bincount(inverse.reshape(-1), weights=mesh.area_faces)))
-    missing = [m for m in materials if present.get(m, 0.0) < MIN_PATCH_AREA_M2]
-    if missing:
-        found.append(f"material {missing} missing or below {1e4 * MIN_PATCH_AREA_M2:.0f} cm^2")
-    if small_islands(mesh, names, MIN_PATCH_AREA_M2).any():
-        found.append(f"a patch below the minimum {1e4 * MIN_PATCH_AREA_M2:.0f} cm^2")
-    labelled = 1.0 - present.get(IGNORE_NAME, 0.0) / float(mesh.area)
-    if labelled < MIN_LABELLED_SHARE:
-        found.append(f"only {100 * labelled:.0f} % of the surface labelled")
-    return found
+    return found + layout_problems(mesh, names, materials)
 
 
 def draw_object(
@@ -106,8 +91,7 @@ def draw_object(
     rng = np.random.default_rng([seed, sub_seed])
     mesh = _draw_mesh(rng, family, target_faces)
     layout = draw_layout(mesh, pool, rng)
-    resting_face = Region(S.half_space_below(mesh.bounds[0, 2] + BOTTOM_BAND), IGNORE_NAME)
-    names = label_faces(mesh, layout.base_material, [*layout.regions, resting_face], SEAM)
+    names = paint(mesh, layout)
     record = {
         "seed": seed,
         "sub_seed": sub_seed,
@@ -124,14 +108,14 @@ def build_arrays(
 ) -> tuple[np.ndarray, np.ndarray, np.ndarray, dict]:
     """The first draw from sub-seed 0 on that passes `problems`: (vertices, faces, names, record)."""
     last: list[str] = []
-    for sub_seed in range(MAX_SUB_SEEDS):
+    for sub_seed in range(layout_draw.MAX_SUB_SEEDS):
         mesh, names, record = draw_object(seed, sub_seed, family, pool, target_faces)
         last = problems(mesh, names, record["materials"])
         if not last:
             return np.asarray(mesh.vertices), np.asarray(mesh.faces), names, record
         log.info("object=random seed %d sub-seed %d redrawn: %s", seed, sub_seed, "; ".join(last))
     raise DataError(
-        f"object.seed={seed} (family {family}) failed its checks in {MAX_SUB_SEEDS} draws "
+        f"object.seed={seed} (family {family}) failed its checks in {layout_draw.MAX_SUB_SEEDS} draws "
         f"(last: {'; '.join(last)}): pick another object.seed"
     )
 

@@ -191,6 +191,8 @@ def run_metrics(cfg: DictConfig, obj, sensor, session: MappingSession, device) -
             "resumed_from": cfg.mapping.resume,
             # A generated object (object=random): seed, sub-seed used, family, layout.
             "object_generation": getattr(obj, "generation", None),
+            # A custom mesh with a drawn layout (object.layout_seed): mesh, seed, layout.
+            "object_layout": getattr(obj, "layout", None),
         },
     }
 

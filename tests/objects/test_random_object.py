@@ -11,6 +11,7 @@ from hydra.utils import instantiate
 from neuralfeels_sem.configs import validate_config
 from neuralfeels_sem.core.errors import ConfigError, DataError
 from neuralfeels_sem.core.materials import DEFAULT_MATERIALS, IGNORE
+from neuralfeels_sem.objects import layout_draw as L
 from neuralfeels_sem.objects import random_object as R
 from neuralfeels_sem.objects.random_shapes import FAMILIES
 from tests.helpers import compose_config
@@ -40,8 +41,8 @@ def test_every_family_builds_a_watertight_object_of_two_to_four_materials(family
     assert 2 <= len(present) <= 4
     assert {CLASSES[k] for k in present} == set(obj.generation["materials"])
     areas = obj.area_by_material()
-    assert all(areas[m] >= R.MIN_PATCH_AREA_M2 for m in obj.generation["materials"])
-    assert 0 < areas["ignore"] < (1 - R.MIN_LABELLED_SHARE) * obj.mesh.area  # seams, resting face
+    assert all(areas[m] >= L.MIN_PATCH_AREA_M2 for m in obj.generation["materials"])
+    assert 0 < areas["ignore"] < (1 - L.MIN_LABELLED_SHARE) * obj.mesh.area  # seams, resting face
     assert obj.generation["family"] == family and obj.name == "random_11"
     assert np.allclose(obj.mesh.bounds.mean(axis=0), 0.0, atol=1e-9)
 
@@ -67,8 +68,8 @@ def test_a_draw_failing_its_checks_is_redrawn_from_the_next_sub_seed(monkeypatch
 
 
 def test_an_object_that_never_passes_is_an_error_not_accepted(monkeypatch) -> None:
-    monkeypatch.setattr(R, "MAX_SUB_SEEDS", 2)
-    monkeypatch.setattr(R, "MIN_PATCH_AREA_M2", 1.0)  # no patch is a square metre
+    monkeypatch.setattr(L, "MAX_SUB_SEEDS", 2)
+    monkeypatch.setattr(L, "MIN_PATCH_AREA_M2", 1.0)  # no patch is a square metre
     with pytest.raises(DataError, match=r"object.seed=5 .* failed its checks in 2 draws") as info:
         R.build_arrays(5, "boxy", CLASSES)
     assert "\n" not in str(info.value)
