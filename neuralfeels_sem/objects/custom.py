@@ -28,7 +28,7 @@ from neuralfeels_sem.utils.paths import REPO_DIR
 log = logging.getLogger(__name__)
 
 MESH_SUFFIXES = (".obj", ".ply", ".stl")
-HAND_SIZE_M = (0.05, 0.12)  # largest extent a hand of this size can turn
+HAND_SIZE_M = (0.05, 0.20)  # largest extent the rig turns and presses (as object=random's)
 
 
 def resolve_path(path: str | Path, key: str) -> Path:

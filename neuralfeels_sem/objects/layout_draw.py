@@ -10,6 +10,7 @@ next sub-seed. `object=random` draws its shape and layout together (random_objec
 from __future__ import annotations
 
 import logging
+import zlib
 from collections.abc import Sequence
 
 import numpy as np
@@ -55,6 +56,14 @@ def layout_problems(
     return found
 
 
+def shape_key(mesh: trimesh.Trimesh) -> int:
+    """A number that tells meshes apart (face count, extents to 0.1 mm): mixed into the
+    layout's random stream so that one layout seed draws different layouts on different
+    meshes, and the same layout on the same mesh wherever it is loaded."""
+    extents = np.round(np.asarray(mesh.extents) * 1e4).astype(np.int64)
+    return zlib.crc32(np.array([len(mesh.faces), *extents], dtype=np.int64).tobytes())
+
+
 def draw_on_mesh(
     mesh: trimesh.Trimesh, seed: int, pool: Sequence[str], what: str
 ) -> tuple[np.ndarray, dict]:
@@ -65,8 +74,9 @@ def draw_on_mesh(
     for a patch of the minimum area, say).
     """
     last: list[str] = []
+    shape = shape_key(mesh)
     for sub_seed in range(MAX_SUB_SEEDS):
-        layout = draw_layout(mesh, pool, np.random.default_rng([seed, sub_seed]))
+        layout = draw_layout(mesh, pool, np.random.default_rng([seed, sub_seed, shape]))
         names = paint(mesh, layout)
         last = layout_problems(mesh, names, layout.materials)
         if not last:

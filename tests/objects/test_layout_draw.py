@@ -46,7 +46,8 @@ def test_a_layout_failing_its_checks_is_redrawn_from_the_next_sub_seed(monkeypat
     names, record = L.draw_on_mesh(mesh, 4, CLASSES, "test mesh")
     assert record["sub_seed"] >= 2 and record["layout_seed"] == 4
     monkeypatch.setattr(L, "layout_problems", real)
-    layout = L.draw_layout(mesh, CLASSES, np.random.default_rng([4, record["sub_seed"]]))
+    stream = [4, record["sub_seed"], L.shape_key(mesh)]
+    layout = L.draw_layout(mesh, CLASSES, np.random.default_rng(stream))
     np.testing.assert_array_equal(names, L.paint(mesh, layout))
     assert set(names) - {"ignore"} == set(record["materials"])
 
@@ -95,3 +96,12 @@ def test_ycb_scan_takes_a_drawn_layout(shared_data: Path) -> None:
     assert obj.mesh.is_watertight
     assert obj.layout["mesh"] == "model" and len(obj.layout["materials"]) >= 2
     assert (obj.face_labels >= 0).mean() > L.MIN_LABELLED_SHARE
+
+
+def test_shape_key_tells_meshes_apart_and_ignores_where_the_mesh_sits() -> None:
+    mesh = trimesh.creation.capsule(height=0.06, radius=0.02, count=[32, 32])
+    moved = mesh.copy()
+    moved.apply_translation([0.1, -0.2, 0.3])
+    larger = mesh.copy()
+    larger.apply_scale(1.01)
+    assert L.shape_key(moved) == L.shape_key(mesh) != L.shape_key(larger)
