@@ -56,6 +56,7 @@ from neuralfeels_sem.eval.results_runs import (
     display_path,
     oracles_of,
 )
+from neuralfeels_sem.eval.results_scanned import is_scanned, scanned_section
 from neuralfeels_sem.eval.results_tables import (
     multi_material_table,
     perception_table,
@@ -230,11 +231,11 @@ def perception_section(runs: Sequence[Run]) -> list[str]:
 
 def own_section_runs(source: Source) -> list[Run]:
     """Tracked runs (with their `pose=gt` partners), active-touch runs, resume pairs and
-    runs on generated objects: they have sections of their own, not the object or settings
-    tables."""
+    runs on generated objects or scanned meshes with drawn layouts: they have sections of
+    their own, not the object or settings tables."""
     tracked, partners = pose_runs(source)
     resumed = [r for pair in resume_pairs(source) for r in pair]
-    own = [r for r in source.runs if is_policy_run(r) or is_generated(r)]
+    own = [r for r in source.runs if is_policy_run(r) or is_generated(r) or is_scanned(r)]
     return tracked + partners + resumed + own
 
 
@@ -296,6 +297,7 @@ def render(
         *perception_section(runs),
         *uncertainty_section(sources, runs),
         *generated_section(sources),
+        *scanned_section(sources),
         *pose_section(sources, references),
         *policy_section(sources, references),
         *resume_section(sources),

@@ -1,0 +1,120 @@
+"""The scanned-meshes section of the results page: custom meshes with drawn layouts.
+
+Runs of `object=custom object.layout_seed=K` (experiment=scanned_objects: real scanned
+shapes, each with generated material layouts): per source and setting a row per mesh and
+layout, with the same figures as the generated objects' tables, then the mean over the
+rows, how many reach TARGET_PCT and the lowest.
+"""
+
+from __future__ import annotations
+
+from collections.abc import Sequence
+
+from neuralfeels_sem.eval.results_generated import FIGURE_HEADER, FIGURES, TARGET_PCT
+from neuralfeels_sem.eval.results_pose import is_tracked
+from neuralfeels_sem.eval.results_runs import Run, Source, get
+from neuralfeels_sem.eval.results_tables import (
+    fmt,
+    majority_cells,
+    mean,
+    mean_std,
+    oracles_cell,
+    table,
+    values_of,
+)
+
+LAYOUT = "config.object_layout"  # what load_custom_object drew (metrics.json)
+MEAN_CLASS = "matching_mean_class_pct"
+FLOOR = "baseline_majority.matching_mean_class_pct"
+HEADER = [
+    "mesh",
+    "size",
+    "layout seed",
+    "materials: regions",
+    "runs",
+    "mean-class %",
+    "majority map % (material)",
+    *FIGURE_HEADER,
+]
+
+
+def is_scanned(run: Run) -> bool:
+    return get(run.metrics, LAYOUT) is not None
+
+
+def layout_key(run: Run) -> tuple[str, int]:
+    return str(get(run.metrics, f"{LAYOUT}.mesh")), int(get(run.metrics, f"{LAYOUT}.layout_seed"))
+
+
+def setting_text(run: Run) -> str:
+    """The run's setting less the mesh and layout ("today's defaults" when that is all)."""
+    rest = {k: v for k, v in run.setting.items() if not k.startswith("object.")}
+    setting = ", ".join(f"`{k}={v}`" for k, v in sorted(rest.items())) or "today's defaults"
+    return f"{setting} (oracles: {oracles_cell(run)})"
+
+
+def layout_rows(runs: Sequence[Run]) -> tuple[list[list[str]], dict[tuple[str, int], float]]:
+    """A row per (mesh, layout seed), and each one's mean-class matching."""
+    groups: dict[tuple[str, int], list[Run]] = {}
+    for run in sorted(runs, key=layout_key):
+        groups.setdefault(layout_key(run), []).append(run)
+    rows, per_layout = [], {}
+    for (mesh, seed), members in groups.items():
+        made = get(members[0].metrics, LAYOUT)
+        regions = ", ".join(made.get("regions") or [])
+        per_layout[(mesh, seed)] = mean(values_of(members, MEAN_CLASS))
+        rows.append(
+            [
+                mesh,
+                f"{fmt(100.0 * made['size_m'], 0)} cm" if made.get("size_m") else "?",
+                str(seed),
+                f"{len(made.get('materials') or [])}: {regions}",
+                str(len(members)),
+                fmt(per_layout[(mesh, seed)]),
+                majority_cells(members)[0],
+                *(fmt(mean(values_of(members, k, s)), d) for k, s, d in FIGURES),
+            ]
+        )
+    return rows, per_layout
+
+
+def setting_table(runs: Sequence[Run]) -> list[str]:
+    rows, per_layout = layout_rows(runs)
+    scored = {k: v for k, v in per_layout.items() if v is not None}
+    low = min(scored, key=scored.get) if scored else None
+    reach = sum(v >= TARGET_PCT for v in scored.values())
+    lowest = f"{fmt(scored[low])} ({low[0]}, layout {low[1]})" if low else "n/a"
+    means = [
+        f"**{mean_std(list(scored.values()))}**",
+        fmt(mean(values_of(runs, FLOOR))),
+        *(mean_std(values_of(runs, k, s), d) for k, s, d in FIGURES),
+    ]
+    return [
+        f"Setting: {setting_text(runs[0])}. Mean-class matching at or above "
+        f"{fmt(TARGET_PCT, 0)} %: {reach} of {len(scored)} layouts; lowest {lowest}.",
+        "",
+        *table(HEADER, rows + [["**mean**", "", "", "", str(len(runs)), *means]]),
+    ]
+
+
+INTRO = [
+    "Runs on real scanned meshes (`object=custom`) with material layouts drawn onto them by",
+    "`object.layout_seed=K` (the generated objects' kind of layout; see",
+    "[objects](objects.md#your-own-mesh-objectcustom)): shapes and layouts no setting was",
+    "tuned on, run to report. Per mesh and layout the same figures as for the generated",
+    "objects; the mean is over layouts (the majority map's over runs).",
+]
+
+
+def scanned_section(sources: Sequence[Source]) -> list[str]:
+    lines = []
+    for source in sources:
+        runs = [r for r in source.runs if is_scanned(r) and not is_tracked(r)]
+        settings: dict[str, list[Run]] = {}
+        for run in runs:
+            settings.setdefault(setting_text(run), []).append(run)
+        for members in settings.values():
+            lines += [f"### `{source.label}`", "", *setting_table(members), ""]
+    if not lines:
+        return []
+    return ["", "## Scanned meshes", "", *INTRO, "", *lines]

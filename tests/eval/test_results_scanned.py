@@ -1,0 +1,38 @@
+"""The results page's section for scanned meshes with drawn layouts (object.layout_seed)."""
+
+from __future__ import annotations
+
+from pathlib import Path
+
+from tests.eval.test_results_page import cells, generate, run_metrics, section
+from tests.viz.test_sweep_plots import write_job
+
+
+def scanned_metrics(mesh: str, layout_seed: int, mean_class: float) -> dict:
+    made = {"mesh": mesh, "size_m": 0.19, "layout_seed": layout_seed, "sub_seed": 0,
+            "materials": ["metal", "wood", "fabric"], "regions": ["half", "insert"]}  # fmt: skip
+    return run_metrics(
+        mean_class, 90.0, 33.3, 60.0, "metal",
+        accuracy=0.97, coverage=0.7, oracles=["object_pose"],
+        uncertainty={"auroc": 0.9}, config={"object": mesh, "object_layout": made},
+    )  # fmt: skip
+
+
+def test_scanned_meshes_get_a_row_per_layout_a_mean_and_the_lowest(tmp_path: Path) -> None:
+    sweep = tmp_path / "multirun" / "scanned"
+    runs = [("MustardBottle", 0, 91.0), ("MustardBottle", 1, 75.0), ("FoamBrick", 0, 95.0)]
+    for k, (mesh, layout, value) in enumerate(runs):
+        overrides = ["experiment=scanned_objects", f"object.name={mesh}"]
+        write_job(sweep, str(k), [*overrides, f"object.layout_seed={layout}", "seed=0"],
+                  scanned_metrics(mesh, layout, value))  # fmt: skip
+    page = generate(tmp_path, sweep)
+    part = section(page, "Scanned meshes")
+    assert "Setting: today's defaults (oracles: pose)." in part
+    assert "at or above 80 %: 2 of 3 layouts; lowest 75.0 (MustardBottle, layout 1)" in part
+    row = cells(part, "FoamBrick")
+    assert row[1:] == ["19 cm", "0", "3: half, insert", "1", "95.0", "33.3 (metal)", "97.0",
+                       "70.0", "0.90"]  # fmt: skip
+    assert cells(part, "**mean**")[5] == "**87.0 ± 10.6**"
+    # Their own section only: neither a settings table nor the generated objects'.
+    assert "layout_seed" not in section(page, "Other settings")
+    assert "## Generated objects" not in page
