@@ -8,6 +8,7 @@ map's, so a benchmark of many objects (experiment=unseen_objects) is read at a g
 from __future__ import annotations
 
 import math
+import textwrap
 from dataclasses import dataclass
 from pathlib import Path
 
@@ -18,6 +19,7 @@ MAPS_FILE = "material_maps.png"
 # material_maps.png is taller than wide (fixed views in rows, three columns): five tiles a
 # row keep the 20 objects of experiment=unseen_objects on one readable page.
 TILE_WIDTH_IN = 4.0
+TITLE_CHARS = 56  # a title line at 9 pt across one tile; longer titles wrap (two lines fit)
 
 
 @dataclass(frozen=True)
@@ -48,12 +50,12 @@ def plot_maps_grid(tiles: list[MapTile], path: Path, columns: int = 5, dpi: int 
     aspect = max(image.shape[0] / image.shape[1] for image in images)
     columns = min(columns, len(tiles))
     rows = math.ceil(len(tiles) / columns)
-    tile_height = TILE_WIDTH_IN * aspect + 0.4  # room for the title
+    tile_height = TILE_WIDTH_IN * aspect + 0.55  # room for a two-line title
     fig = Figure(figsize=(TILE_WIDTH_IN * columns, tile_height * rows), layout="constrained")
     axes = fig.subplots(rows, columns, squeeze=False).ravel()
     for ax, tile, image in zip(axes, tiles, images):
         ax.imshow(image)
-        ax.set_title(tile.title, fontsize=9)
+        ax.set_title(textwrap.fill(tile.title, TITLE_CHARS), fontsize=9)
     for ax in axes:
         ax.set_axis_off()
     fig.suptitle(f"Final material maps ({len(tiles)} runs): ground truth | prediction | difference")
