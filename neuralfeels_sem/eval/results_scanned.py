@@ -10,18 +10,10 @@ from __future__ import annotations
 
 from collections.abc import Sequence
 
+from neuralfeels_sem.eval import results_tables as T
 from neuralfeels_sem.eval.results_generated import FIGURE_HEADER, FIGURES, TARGET_PCT
 from neuralfeels_sem.eval.results_pose import is_tracked
 from neuralfeels_sem.eval.results_runs import Run, Source, get
-from neuralfeels_sem.eval.results_tables import (
-    fmt,
-    majority_cells,
-    mean,
-    mean_std,
-    oracles_cell,
-    table,
-    values_of,
-)
 
 LAYOUT = "config.object_layout"  # what load_custom_object drew (metrics.json)
 MEAN_CLASS = "matching_mean_class_pct"
@@ -50,7 +42,7 @@ def setting_text(run: Run) -> str:
     """The run's setting less the mesh and layout ("today's defaults" when that is all)."""
     rest = {k: v for k, v in run.setting.items() if not k.startswith("object.")}
     setting = ", ".join(f"`{k}={v}`" for k, v in sorted(rest.items())) or "today's defaults"
-    return f"{setting} (oracles: {oracles_cell(run)})"
+    return f"{setting} (oracles: {T.oracles_cell(run)})"
 
 
 def layout_rows(runs: Sequence[Run]) -> tuple[list[list[str]], dict[tuple[str, int], float]]:
@@ -62,17 +54,17 @@ def layout_rows(runs: Sequence[Run]) -> tuple[list[list[str]], dict[tuple[str, i
     for (mesh, seed), members in groups.items():
         made = get(members[0].metrics, LAYOUT)
         regions = ", ".join(made.get("regions") or [])
-        per_layout[(mesh, seed)] = mean(values_of(members, MEAN_CLASS))
+        per_layout[(mesh, seed)] = T.mean(T.values_of(members, MEAN_CLASS))
         rows.append(
             [
                 mesh,
-                f"{fmt(100.0 * made['size_m'], 0)} cm" if made.get("size_m") else "?",
+                f"{T.fmt(100.0 * made['size_m'], 0)} cm" if made.get("size_m") else "?",
                 str(seed),
                 f"{len(made.get('materials') or [])}: {regions}",
                 str(len(members)),
-                fmt(per_layout[(mesh, seed)]),
-                majority_cells(members)[0],
-                *(fmt(mean(values_of(members, k, s)), d) for k, s, d in FIGURES),
+                T.fmt(per_layout[(mesh, seed)]),
+                T.majority_cells(members)[0],
+                *(T.fmt(T.mean(T.values_of(members, k, s)), d) for k, s, d in FIGURES),
             ]
         )
     return rows, per_layout
@@ -83,17 +75,17 @@ def setting_table(runs: Sequence[Run]) -> list[str]:
     scored = {k: v for k, v in per_layout.items() if v is not None}
     low = min(scored, key=scored.get) if scored else None
     reach = sum(v >= TARGET_PCT for v in scored.values())
-    lowest = f"{fmt(scored[low])} ({low[0]}, layout {low[1]})" if low else "n/a"
+    lowest = f"{T.fmt(scored[low])} ({low[0]}, layout {low[1]})" if low else "n/a"
     means = [
-        f"**{mean_std(list(scored.values()))}**",
-        fmt(mean(values_of(runs, FLOOR))),
-        *(mean_std(values_of(runs, k, s), d) for k, s, d in FIGURES),
+        f"**{T.mean_std(list(scored.values()))}**",
+        T.fmt(T.mean(T.values_of(runs, FLOOR))),
+        *(T.mean_std(T.values_of(runs, k, s), d) for k, s, d in FIGURES),
     ]
     return [
         f"Setting: {setting_text(runs[0])}. Mean-class matching at or above "
-        f"{fmt(TARGET_PCT, 0)} %: {reach} of {len(scored)} layouts; lowest {lowest}.",
+        f"{T.fmt(TARGET_PCT, 0)} %: {reach} of {len(scored)} layouts; lowest {lowest}.",
         "",
-        *table(HEADER, rows + [["**mean**", "", "", "", str(len(runs)), *means]]),
+        *T.table(HEADER, rows + [["**mean**", "", "", "", str(len(runs)), *means]]),
     ]
 
 
