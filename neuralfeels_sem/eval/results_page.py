@@ -56,7 +56,7 @@ from neuralfeels_sem.eval.results_runs import (
     display_path,
     oracles_of,
 )
-from neuralfeels_sem.eval.results_scanned import is_scanned, scanned_section
+from neuralfeels_sem.eval.results_scanned import is_scanned, scanned_references, scanned_section
 from neuralfeels_sem.eval.results_tables import (
     multi_material_table,
     perception_table,
@@ -279,8 +279,10 @@ def render(
     copy, eval/results_archive.py, where the file is gone)."""
     runs = table_runs(sources)
     # What tracked and active-touch runs are compared with: default-config runs, and runs
-    # on generated objects with the simulator's pose (their own section's tables).
-    references = runs + generated_references([r for s in sources for r in s.runs])
+    # on generated objects or scanned meshes with the simulator's pose (their own
+    # sections' tables).
+    every = [r for s in sources for r in s.runs]
+    references = runs + generated_references(every) + scanned_references(every)
     lines = [
         "# Results",
         "",

@@ -34,6 +34,12 @@ def is_scanned(run: Run) -> bool:
     return get(run.metrics, LAYOUT) is not None
 
 
+def scanned_references(runs: Sequence[Run]) -> list[Run]:
+    """Runs on scanned meshes that read the simulator's pose: this section's tables, and
+    the partners active-touch runs on the same layouts are compared with."""
+    return [r for r in runs if is_scanned(r) and not is_tracked(r)]
+
+
 def layout_key(run: Run) -> tuple[str, int]:
     return str(get(run.metrics, f"{LAYOUT}.mesh")), int(get(run.metrics, f"{LAYOUT}.layout_seed"))
 
@@ -101,7 +107,7 @@ INTRO = [
 def scanned_section(sources: Sequence[Source]) -> list[str]:
     lines = []
     for source in sources:
-        runs = [r for r in source.runs if is_scanned(r) and not is_tracked(r)]
+        runs = scanned_references(source.runs)
         settings: dict[str, list[Run]] = {}
         for run in runs:
             settings.setdefault(setting_text(run), []).append(run)

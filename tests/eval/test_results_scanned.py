@@ -18,13 +18,17 @@ def scanned_metrics(mesh: str, layout_seed: int, mean_class: float) -> dict:
     )  # fmt: skip
 
 
+def write_scanned(sweep: Path, runs: list[tuple[str, int, float]], extra: list[str]) -> None:
+    for k, (mesh, layout, value) in enumerate(runs):
+        overrides = ["experiment=scanned_objects", f"object.name={mesh}"]
+        write_job(sweep, str(k), [*overrides, f"object.layout_seed={layout}", "seed=0", *extra],
+                  scanned_metrics(mesh, layout, value))  # fmt: skip
+
+
 def test_scanned_meshes_get_a_row_per_layout_a_mean_and_the_lowest(tmp_path: Path) -> None:
     sweep = tmp_path / "multirun" / "scanned"
     runs = [("MustardBottle", 0, 91.0), ("MustardBottle", 1, 75.0), ("FoamBrick", 0, 95.0)]
-    for k, (mesh, layout, value) in enumerate(runs):
-        overrides = ["experiment=scanned_objects", f"object.name={mesh}"]
-        write_job(sweep, str(k), [*overrides, f"object.layout_seed={layout}", "seed=0"],
-                  scanned_metrics(mesh, layout, value))  # fmt: skip
+    write_scanned(sweep, runs, [])
     page = generate(tmp_path, sweep)
     part = section(page, "Scanned meshes")
     assert "Setting: today's defaults (oracles: pose)." in part
@@ -36,3 +40,16 @@ def test_scanned_meshes_get_a_row_per_layout_a_mean_and_the_lowest(tmp_path: Pat
     # Their own section only: neither a settings table nor the generated objects'.
     assert "layout_seed" not in section(page, "Other settings")
     assert "## Generated objects" not in page
+
+
+def test_active_runs_on_scanned_meshes_beside_their_scripted_runs(tmp_path: Path) -> None:
+    """An active-touch sweep of the scanned layouts is compared, layout by layout, with the
+    scripted (default) run of the same mesh and layout from another sweep."""
+    reference, active = tmp_path / "multirun" / "scanned", tmp_path / "multirun" / "active"
+    write_scanned(reference, [("FoamBrick", 0, 71.0), ("FoamBrick", 1, 60.0)], [])
+    write_scanned(active, [("FoamBrick", 1, 80.0)], ["sensor.policy=active"])
+    page = generate(tmp_path, reference, active)
+    row = cells(section(page, "Active touch"), "object=FoamBrick")  # one layout: every run
+    assert row[3] == "60.0†" and row[6] == "80.0" and row[9] == "+20.0"
+    scanned = section(page, "Scanned meshes")
+    assert "Setting: `sensor.policy=active` (oracles: pose)." in scanned
