@@ -105,6 +105,8 @@ class CustomObjectConfig:
             raise ValueError(
                 f"object.rescale_to={self.rescale_to} must be in (0, 1] metres, or null"
             )
+        if self.layout_seed is not None and self.layout_seed < 0:
+            raise ValueError(f"object.layout_seed={self.layout_seed} must be >= 0, or null")
         given = {"layout_seed": self.layout_seed, "labels": self.labels, "material": self.material}
         given = {k: v for k, v in given.items() if v is not None}
         if len(given) > 1:

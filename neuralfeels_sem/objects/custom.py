@@ -129,6 +129,8 @@ def _check_options(
         raise ConfigError(f"object.{a}={x} and object.{b}={y} are both set: pick one")
     if rescale_to is not None and rescale_to <= 0:
         raise ConfigError(f"object.rescale_to={rescale_to} must be > 0 metres, or null")
+    if layout_seed is not None and (isinstance(layout_seed, bool) or layout_seed < 0):
+        raise ConfigError(f"object.layout_seed={layout_seed} must be an integer >= 0, or null")
 
 
 def _label_source(

@@ -105,3 +105,8 @@ def test_shape_key_tells_meshes_apart_and_ignores_where_the_mesh_sits() -> None:
     larger = mesh.copy()
     larger.apply_scale(1.01)
     assert L.shape_key(moved) == L.shape_key(mesh) != L.shape_key(larger)
+
+
+def test_a_negative_layout_seed_is_a_one_line_config_error() -> None:
+    with pytest.raises(ConfigError, match=r"object.layout_seed=-3 must be an integer >= 0"):
+        load_custom_object(EGG, CLASSES, layout_seed=-3)

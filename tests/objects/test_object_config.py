@@ -56,6 +56,8 @@ def test_object_missing_a_material_is_a_config_error() -> None:
         (["object=plushie", "object.name=plushy"], "object.name='plushy' is not a shipped object"),
         (["object=custom", "object.rescale_to=0"], "object.rescale_to=0.0 must be in"),
         (["object=custom", "object.labels=a.npy", "object.material=metal"], "are both set"),
+        (["object=custom", "object.layout_seed=1", "object.material=metal"], "are both set"),
+        (["object=custom", "object.layout_seed=-1"], "object.layout_seed=-1 must be >= 0"),
         (
             ["object=plushie", "object.aruco.markers=[{id:3,pose:[0,0,0]}]"],
             r"object.aruco.markers\[0\].pose needs 6 values",
