@@ -210,8 +210,13 @@ def single_material_table(
 
 
 def setting_label(run: Run, keys: Sequence[str]) -> str:
-    parts = [f"object={run.object}"] + [f"{k}={run.setting[k]}" for k in keys if k in run.setting]
-    return ", ".join(parts)
+    layout = get(run.metrics, "config.object_layout")  # a custom mesh with a drawn layout
+    if isinstance(layout, dict):
+        head = f"{layout.get('mesh')}, layout {layout.get('layout_seed')}"
+        keys = [k for k in keys if not k.startswith("object.")]  # the head names them
+    else:
+        head = f"object={run.object}"
+    return ", ".join([head] + [f"{k}={run.setting[k]}" for k in keys if k in run.setting])
 
 
 def range_cell(values: Sequence[float], digits: int = 0) -> str:

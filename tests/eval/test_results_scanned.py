@@ -49,7 +49,7 @@ def test_active_runs_on_scanned_meshes_beside_their_scripted_runs(tmp_path: Path
     write_scanned(reference, [("FoamBrick", 0, 71.0), ("FoamBrick", 1, 60.0)], [])
     write_scanned(active, [("FoamBrick", 1, 80.0)], ["sensor.policy=active"])
     page = generate(tmp_path, reference, active)
-    row = cells(section(page, "Active touch"), "object=FoamBrick")  # one layout: every run
+    row = cells(section(page, "Active touch"), "FoamBrick, layout 1")
     assert row[3] == "60.0†" and row[6] == "80.0" and row[9] == "+20.0"
     scanned = section(page, "Scanned meshes")
     assert "Setting: `sensor.policy=active` (oracles: pose)." in scanned
