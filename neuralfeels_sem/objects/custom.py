@@ -183,6 +183,17 @@ def _centre_and_scale(clean: trimesh.Trimesh, mesh_path: Path, rescale_to: float
         )
 
 
+def _drawn_labels(
+    clean: trimesh.Trimesh, seed: int, class_names: tuple[str, ...], mesh_path: Path, name: str
+) -> tuple[np.ndarray, dict]:
+    """Face labels of the layout drawn from `seed` on the cleaned, scaled mesh, and its record."""
+    what = f"object.mesh={mesh_path}"
+    names, drawn = draw_on_mesh(clean, seed, class_names, what)
+    record = {"mesh": name, "size_m": round(float(clean.extents.max()), 4), **drawn}
+    log.info("object=custom layout: %s", record)
+    return names_to_labels(names, class_names, what=what), record
+
+
 def load_custom_object(
     mesh: str,
     class_names: Sequence[str],
@@ -217,11 +228,7 @@ def load_custom_object(
     name = name or mesh_path.stem
     record = None
     if drawn:
-        what = f"object.mesh={mesh_path}"
-        names, record = draw_on_mesh(clean, int(layout_seed), class_names, what)
-        face_labels = names_to_labels(names, class_names, what=what)
-        record = {"mesh": name, "size_m": round(float(clean.extents.max()), 4), **record}
-        log.info("object=custom layout: %s", record)
+        face_labels, record = _drawn_labels(clean, int(layout_seed), class_names, mesh_path, name)
     body = None if record is None else record["materials"][0]
     mass, friction = mass_and_friction(
         float(clean.volume), np.asarray(clean.area_faces), face_labels, class_names, body
