@@ -1,9 +1,9 @@
 """The scanned-meshes section of the results page: custom meshes with drawn layouts.
 
 Runs of `object=custom object.layout_seed=K` (experiment=scanned_objects: real scanned
-shapes, each with generated material layouts): per source and setting a row per mesh and
-layout, with the same figures as the generated objects' tables, then the mean over the
-rows, how many reach TARGET_PCT and the lowest.
+shapes, each with generated material layouts): per setting, pooled over the sources (a
+sweep per mapping seed), a row per mesh and layout with the same figures as the generated
+objects' tables, then the mean over the layouts, how many reach TARGET_PCT and the lowest.
 """
 
 from __future__ import annotations
@@ -105,14 +105,15 @@ INTRO = [
 
 
 def scanned_section(sources: Sequence[Source]) -> list[str]:
-    lines = []
+    """One table per setting, its runs pooled over the sources (a mapping seed per sweep)."""
+    settings: dict[str, list[tuple[str, Run]]] = {}
     for source in sources:
-        runs = scanned_references(source.runs)
-        settings: dict[str, list[Run]] = {}
-        for run in runs:
-            settings.setdefault(setting_text(run), []).append(run)
-        for members in settings.values():
-            lines += [f"### `{source.label}`", "", *setting_table(members), ""]
+        for run in scanned_references(source.runs):
+            settings.setdefault(setting_text(run), []).append((source.label, run))
+    lines = []
+    for members in settings.values():
+        labels = ", ".join(f"`{label}`" for label in dict.fromkeys(lab for lab, _ in members))
+        lines += [f"### {labels}", "", *setting_table([run for _, run in members]), ""]
     if not lines:
         return []
     return ["", "## Scanned meshes", "", *INTRO, "", *lines]

@@ -53,3 +53,14 @@ def test_active_runs_on_scanned_meshes_beside_their_scripted_runs(tmp_path: Path
     assert row[3] == "60.0†" and row[6] == "80.0" and row[9] == "+20.0"
     scanned = section(page, "Scanned meshes")
     assert "Setting: `sensor.policy=active` (oracles: pose)." in scanned
+
+
+def test_runs_of_one_setting_are_pooled_over_sweeps(tmp_path: Path) -> None:
+    """A sweep per mapping seed: one table per setting, each layout's runs averaged."""
+    first, second = tmp_path / "multirun" / "s0", tmp_path / "multirun" / "s1"
+    write_scanned(first, [("FoamBrick", 0, 70.0), ("FoamBrick", 1, 90.0)], [])
+    write_scanned(second, [("FoamBrick", 0, 80.0)], [])
+    part = section(generate(tmp_path, first, second), "Scanned meshes")
+    assert part.count("### ") == 1 and "multirun/s0`, `" in part and "multirun/s1`\n" in part
+    assert cells(part, "FoamBrick")[4:6] == ["2", "75.0"]  # layout 0: both seeds
+    assert "1 of 2 layouts; lowest 75.0 (FoamBrick, layout 0)" in part
