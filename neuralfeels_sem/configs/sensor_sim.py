@@ -104,6 +104,9 @@ class SimSensorConfig:
     # and novelty, with regrasps (sim/touch_planner.py, docs/simulation.md)
     policy: str = "scripted"
     planner: TouchPlannerConfig = field(default_factory=TouchPlannerConfig)
+    # policy=active, offline: frame j is planned with the advice of frame j - this; above 1
+    # the producer renders that many frames ahead of the mapper (touches on an older map).
+    advice_lag_frames: int = 1
     # offline: every frame is mapped, however long it takes; realtime: frame i is due at
     # i / fps seconds of wall time and the mapper takes the newest (docs/usage.md).
     pace: str = "offline"
@@ -114,6 +117,8 @@ class SimSensorConfig:
         check_duration("sensor.duration_s", self.duration_s)
         check_rate("sensor.fps", self.fps)
         check_pace(self.pace)
+        if self.advice_lag_frames < 1:
+            raise ValueError(f"sensor.advice_lag_frames={self.advice_lag_frames} must be >= 1")
         if not self.fingers or any(f not in FINGERS for f in self.fingers):
             raise ValueError(
                 f"sensor.fingers={self.fingers} must be a non-empty subset of {list(FINGERS)}"

@@ -10,10 +10,11 @@ the same sensors a run sees.
 `policy=active`: new contacts go where the map is most uncertain (sim/touch_planner.py).
 The mapping session's touch advisor (pipeline/touch_advisor.py) hands the sensor its
 advice after every mapped frame (`advise`); at sensor.pace=offline frame j is planned
-with the advice of frame j - 1. Frames are rendered as the session asks for them, so a
-touch chosen at time t shapes the frames after t; a producer that renders ahead of the
-mapper waits for the advice it needs (up to ADVICE_WAIT_S), so the same seed gives the
-same run.
+with the advice of frame j - `advice_lag_frames` (1: the newest the mapper can have).
+Frames are rendered as the session asks for them, so a touch chosen at time t shapes the
+frames after t; a producer that renders ahead of the mapper waits for the advice it needs
+(up to ADVICE_WAIT_S), so the same seed gives the same run. A lag above 1 lets the
+producer render that many frames ahead, the touches planned on a slightly older map.
 """
 
 from __future__ import annotations
@@ -58,6 +59,7 @@ class SimSensor(IndexedSensor):
             and the lab scenery (table_height, backdrop_distance, mount).
         policy: scripted (the gait's sampled touches) or active (the map's advice ranks them).
         planner: TouchPlannerConfig options for policy=active.
+        advice_lag_frames: policy=active, offline: frame j follows frame j - this's advice.
         pace: offline | realtime (sensors/base.py PACES), read by a mapping run.
     """
 
@@ -84,13 +86,19 @@ class SimSensor(IndexedSensor):
         policy: str = "scripted",
         planner: dict | None = None,
         pace: str = "offline",
+        advice_lag_frames: int = 1,
     ) -> None:
         if duration_s <= 0 or fps <= 0:
             raise ValueError(f"duration_s and fps must be > 0, got {duration_s}, {fps}")
         if policy not in POLICIES:
             raise ValueError(f"policy must be one of {POLICIES}, got {policy!r}")
         self.policy, self.planner_options = policy, dict(planner or {})
+        if advice_lag_frames < 1:
+            raise ValueError(f"advice_lag_frames must be >= 1, got {advice_lag_frames}")
+        self.advice_lag = int(advice_lag_frames)
         self._advice, self._advice_index = None, -1
+        self._advices: dict[int, object] = {}  # the latest advice_lag ones, by frame index
+        self._first_index: int | None = None  # the first frame asked for (a resumed run's)
         self._advice_ready = threading.Condition()
         self.obj = obj
         self.class_names = None if class_names is None else tuple(class_names)
@@ -202,25 +210,34 @@ class SimSensor(IndexedSensor):
         """The map's TouchAdvice after mapping `frame_index` (sim/touch_planner.py)."""
         with self._advice_ready:
             self._advice, self._advice_index = advice, int(frame_index)
+            self._advices[int(frame_index)] = advice
+            for old in [k for k in self._advices if k <= frame_index - self.advice_lag]:
+                del self._advices[old]  # every frame still to come needs a later one
             self._advice_ready.notify_all()
 
     def _latest_advice(self, index: int):
-        """The advice frame `index` is planned with: frame index - 1's, once advice flows.
+        """The advice frame `index` is planned with: frame index - lag's, once advice flows.
 
         Before the first advice (frame 0, or the frames a resumed run skips) there is none;
         at sensor.pace=realtime it is the newest advice, whatever frame it follows.
         """
         with self._advice_ready:
-            lockstep = getattr(self, "pace", "offline") == "offline"
-            if (
-                lockstep
-                and self._advice_index >= 0
-                and not self._advice_ready.wait_for(
-                    lambda: self._advice_index >= index - 1, timeout=ADVICE_WAIT_S
-                )
+            if getattr(self, "pace", "offline") != "offline":
+                return self._advice
+            wanted = index - self.advice_lag
+            if self._first_index is None:
+                self._first_index = index  # advice comes for this frame and later ones
+            # One frame behind, wait once advice flows; further behind, wait for any frame
+            # the run maps (a frame rendered ahead must not see whichever advice came last).
+            due = self._advice_index >= 0 if self.advice_lag == 1 else wanted >= self._first_index
+            if due and not self._advice_ready.wait_for(
+                lambda: self._advice_index >= wanted, timeout=ADVICE_WAIT_S
             ):
-                log.warning("frame %d planned without the advice of frame %d", index, index - 1)
-            return self._advice
+                log.warning("frame %d planned without the advice of frame %d", index, wanted)
+                return self._advice
+            if self.advice_lag == 1:
+                return self._advice  # frame index - 1's: the mapper has mapped no later one
+            return self._advices.get(wanted)
 
     def touch_plan(self) -> dict | None:
         """What the active policy did: its choices and regrasps (None for policy=scripted)."""
