@@ -93,13 +93,7 @@ class SimSensor(IndexedSensor):
         if policy not in POLICIES:
             raise ValueError(f"policy must be one of {POLICIES}, got {policy!r}")
         self.policy, self.planner_options = policy, dict(planner or {})
-        if advice_lag_frames < 1:
-            raise ValueError(f"advice_lag_frames must be >= 1, got {advice_lag_frames}")
-        self.advice_lag = int(advice_lag_frames)
-        self._advice, self._advice_index = None, -1
-        self._advices: dict[int, object] = {}  # the latest advice_lag ones, by frame index
-        self._first_index: int | None = None  # the first frame asked for (a resumed run's)
-        self._advice_ready = threading.Condition()
+        self._init_advice(advice_lag_frames)
         self.obj = obj
         self.class_names = None if class_names is None else tuple(class_names)
         self.name = name
@@ -205,6 +199,16 @@ class SimSensor(IndexedSensor):
     def confirm_regrasps(self) -> bool:
         """Whether the planner regrasps for readings to confirm (its confirm_regrasp_after)."""
         return self.accepts_advice and self.planner_options.get("confirm_regrasp_after") is not None
+
+    def _init_advice(self, lag: int) -> None:
+        """No advice yet; frame j will follow frame j - lag's (policy=active, offline)."""
+        if lag < 1:
+            raise ValueError(f"advice_lag_frames must be >= 1, got {lag}")
+        self.advice_lag = int(lag)
+        self._advice, self._advice_index = None, -1
+        self._advices: dict[int, object] = {}  # the latest advice_lag ones, by frame index
+        self._first_index: int | None = None  # the first frame asked for (a resumed run's)
+        self._advice_ready = threading.Condition()
 
     def advise(self, frame_index: int, advice) -> None:
         """The map's TouchAdvice after mapping `frame_index` (sim/touch_planner.py)."""
