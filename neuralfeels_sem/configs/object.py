@@ -8,6 +8,7 @@ from pathlib import Path
 from omegaconf import MISSING, OmegaConf
 
 from neuralfeels_sem.core.materials import DEFAULT_MATERIALS
+from neuralfeels_sem.objects.custom import label_sources_clash
 
 # The shipped objects (neuralfeels_sem.objects.procedural.RECIPES; a test keeps both equal).
 SHIPPED_OBJECTS = (
@@ -107,11 +108,9 @@ class CustomObjectConfig:
             )
         if self.layout_seed is not None and self.layout_seed < 0:
             raise ValueError(f"object.layout_seed={self.layout_seed} must be >= 0, or null")
-        given = {"layout_seed": self.layout_seed, "labels": self.labels, "material": self.material}
-        given = {k: v for k, v in given.items() if v is not None}
-        if len(given) > 1:
-            (a, x), (b, y), *_ = given.items()
-            raise ValueError(f"object.{a}={x} and object.{b}={y} are both set: pick one")
+        clash = label_sources_clash(self.labels, self.material, self.layout_seed)
+        if clash is not None:
+            raise ValueError(clash)
 
 
 @dataclass

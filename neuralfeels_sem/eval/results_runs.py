@@ -31,6 +31,7 @@ BOOKKEEPING_KEYS = ("seed", "experiment", "launcher", "perception", "viz.plots")
 BOOKKEEPING_VALUES = {"task": "map", "sensor": "sim"}
 GENERATED_NAME = re.compile(r"random_\d+")  # the name a generated object's metrics give it
 SINGLE_MATERIAL_FLOOR = 100.0 - 1e-6  # majority map's mean-class % on a one-material object
+OBJECT_LAYOUT = "config.object_layout"  # a custom mesh's drawn layout (metrics.json)
 SUGGESTIONS = "touch_suggestions.json"  # an active run's plan (pipeline/touch_advisor.py)
 
 

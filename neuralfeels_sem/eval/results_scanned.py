@@ -11,13 +11,17 @@ from __future__ import annotations
 from collections.abc import Sequence
 
 from neuralfeels_sem.eval import results_tables as T
-from neuralfeels_sem.eval.results_generated import FIGURE_HEADER, FIGURES, TARGET_PCT
+from neuralfeels_sem.eval.results_generated import (
+    FIGURE_HEADER,
+    FIGURES,
+    FLOOR,
+    MEAN_CLASS,
+    TARGET_PCT,
+)
 from neuralfeels_sem.eval.results_pose import is_tracked
+from neuralfeels_sem.eval.results_runs import OBJECT_LAYOUT as LAYOUT
 from neuralfeels_sem.eval.results_runs import Run, Source, get
 
-LAYOUT = "config.object_layout"  # what load_custom_object drew (metrics.json)
-MEAN_CLASS = "matching_mean_class_pct"
-FLOOR = "baseline_majority.matching_mean_class_pct"
 HEADER = [
     "mesh",
     "size",

@@ -7,7 +7,7 @@ from collections.abc import Callable, Iterable, Sequence
 from typing import Any
 
 from neuralfeels_sem.eval.aggregate import mean_and_std
-from neuralfeels_sem.eval.results_runs import Run, Source, get, oracles_of
+from neuralfeels_sem.eval.results_runs import OBJECT_LAYOUT, Run, Source, get, oracles_of
 
 
 # ---------------------------------------------------------------------------- statistics
@@ -210,7 +210,7 @@ def single_material_table(
 
 
 def setting_label(run: Run, keys: Sequence[str]) -> str:
-    layout = get(run.metrics, "config.object_layout")  # a custom mesh with a drawn layout
+    layout = get(run.metrics, OBJECT_LAYOUT)  # a custom mesh with a drawn layout
     if isinstance(layout, dict):
         head = f"{layout.get('mesh')}, layout {layout.get('layout_seed')}"
         keys = [k for k in keys if not k.startswith("object.")]  # the head names them

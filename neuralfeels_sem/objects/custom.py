@@ -118,15 +118,26 @@ class LaidOutObject(MaterialObject):
     layout: dict = field(default_factory=dict)
 
 
+def label_sources_clash(
+    labels: str | None, material: str | None, layout_seed: int | None
+) -> str | None:
+    """Why object.labels, material and layout_seed cannot be used together (None: they
+    can): one source of labels at most. The object config's check and the loader's."""
+    given = {"layout_seed": layout_seed, "labels": labels, "material": material}
+    given = {k: v for k, v in given.items() if v is not None}
+    if len(given) < 2:
+        return None
+    (a, x), (b, y), *_ = given.items()
+    return f"object.{a}={x} and object.{b}={y} are both set: pick one"
+
+
 def _check_options(
     labels: str | None, material: str | None, rescale_to: float | None, layout_seed: int | None
 ) -> None:
     """Reject a config that sets more than one label source, or a non-positive rescale."""
-    given = {"layout_seed": layout_seed, "labels": labels, "material": material}
-    given = {k: v for k, v in given.items() if v is not None}
-    if len(given) > 1:
-        (a, x), (b, y), *_ = given.items()
-        raise ConfigError(f"object.{a}={x} and object.{b}={y} are both set: pick one")
+    clash = label_sources_clash(labels, material, layout_seed)
+    if clash is not None:
+        raise ConfigError(clash)
     if rescale_to is not None and rescale_to <= 0:
         raise ConfigError(f"object.rescale_to={rescale_to} must be > 0 metres, or null")
     if layout_seed is not None and (isinstance(layout_seed, bool) or layout_seed < 0):
