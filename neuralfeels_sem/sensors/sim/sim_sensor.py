@@ -231,8 +231,11 @@ class SimSensor(IndexedSensor):
             wanted = index - self.advice_lag
             if self._first_index is None:
                 self._first_index = index  # advice comes for this frame and later ones
-            # One frame behind, wait once advice flows; further behind, wait for any frame
-            # the run maps (a frame rendered ahead must not see whichever advice came last).
+            # Further behind than one frame, wait for any frame the run maps (a frame rendered
+            # ahead must not take whichever advice came last). One frame behind keeps the rule
+            # active runs were measured with: wait once advice flows, so the frames rendered
+            # before the first frame is mapped go without (the same ones each run, as the
+            # producer starts ahead); the stricter rule maps the default run differently.
             due = self._advice_index >= 0 if self.advice_lag == 1 else wanted >= self._first_index
             if due and not self._advice_ready.wait_for(
                 lambda: self._advice_index >= wanted, timeout=ADVICE_WAIT_S
