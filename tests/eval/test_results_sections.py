@@ -185,6 +185,18 @@ def test_an_active_run_without_a_scripted_partner_takes_the_default_run(
     ]
 
 
+def test_an_active_run_of_a_setting_the_gait_never_reads_takes_the_default_run(
+    tmp_path: Path, default_sweep: Path
+) -> None:
+    sweep = tmp_path / "multirun" / "active_lag"
+    metrics = run_metrics(97.0, 95.0, 50.0, 54.0, "plastic", oracles=["object_pose"])
+    metrics["matching_mean_class_curve"] = curve([40.0, 97.0, 97.0])
+    overrides = ["object=patched_toy", "seed=1", "sensor.policy=active"]
+    write_job(sweep, "0", [*overrides, "sensor.advice_lag_frames=3"], metrics)
+    active = section(generate(tmp_path, default_sweep, sweep), "Active touch")
+    assert cells(active, "object=patched_toy")[3:5] == ["92.0†", "0.5 s"]
+
+
 def test_without_tracked_or_policy_runs_the_sections_are_left_out(
     tmp_path: Path, default_sweep: Path
 ) -> None:
