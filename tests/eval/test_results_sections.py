@@ -163,15 +163,21 @@ def test_policy_runs_pair_scripted_and_active_per_object_and_seed(
     assert "No runs with other settings." in page
 
 
-def test_an_active_run_without_a_scripted_partner_takes_the_default_run(
-    tmp_path: Path, default_sweep: Path
-) -> None:
+def active_only_section(tmp_path: Path, default_sweep: Path, extra: list[str]) -> str:
+    """The active-touch section of a page whose one active run (patched_toy, seed 1,
+    `extra` overrides) has no scripted partner in its own sweep."""
     sweep = tmp_path / "multirun" / "active_only"
     metrics = run_metrics(97.0, 95.0, 50.0, 54.0, "plastic", oracles=["object_pose"])
     metrics["matching_mean_class_curve"] = curve([40.0, 97.0, 97.0])
-    write_job(sweep, "0", ["object=patched_toy", "seed=1", "sensor.policy=active"], metrics)
-    page = generate(tmp_path, default_sweep, sweep)
-    active = section(page, "Active touch")
+    overrides = ["object=patched_toy", "seed=1", "sensor.policy=active", *extra]
+    write_job(sweep, "0", overrides, metrics)
+    return section(generate(tmp_path, default_sweep, sweep), "Active touch")
+
+
+def test_an_active_run_without_a_scripted_partner_takes_the_default_run(
+    tmp_path: Path, default_sweep: Path
+) -> None:
+    active = active_only_section(tmp_path, default_sweep, [])
     assert "† no scripted run in this source" in active
     assert cells(active, "object=patched_toy")[3:] == [
         "92.0†",
@@ -188,12 +194,7 @@ def test_an_active_run_without_a_scripted_partner_takes_the_default_run(
 def test_an_active_run_of_a_setting_the_gait_never_reads_takes_the_default_run(
     tmp_path: Path, default_sweep: Path
 ) -> None:
-    sweep = tmp_path / "multirun" / "active_lag"
-    metrics = run_metrics(97.0, 95.0, 50.0, 54.0, "plastic", oracles=["object_pose"])
-    metrics["matching_mean_class_curve"] = curve([40.0, 97.0, 97.0])
-    overrides = ["object=patched_toy", "seed=1", "sensor.policy=active"]
-    write_job(sweep, "0", [*overrides, "sensor.advice_lag_frames=3"], metrics)
-    active = section(generate(tmp_path, default_sweep, sweep), "Active touch")
+    active = active_only_section(tmp_path, default_sweep, ["sensor.advice_lag_frames=3"])
     assert cells(active, "object=patched_toy")[3:5] == ["92.0†", "0.5 s"]
 
 
