@@ -19,8 +19,7 @@ from neuralfeels_sem.eval.results_generated import (
     TARGET_PCT,
 )
 from neuralfeels_sem.eval.results_pose import is_tracked
-from neuralfeels_sem.eval.results_runs import OBJECT_LAYOUT as LAYOUT
-from neuralfeels_sem.eval.results_runs import Run, Source, get
+from neuralfeels_sem.eval.results_runs import OBJECT_LAYOUT, Run, Source, get
 
 HEADER = [
     "mesh",
@@ -35,7 +34,7 @@ HEADER = [
 
 
 def is_scanned(run: Run) -> bool:
-    return get(run.metrics, LAYOUT) is not None
+    return get(run.metrics, OBJECT_LAYOUT) is not None
 
 
 def scanned_references(runs: Sequence[Run]) -> list[Run]:
@@ -45,7 +44,9 @@ def scanned_references(runs: Sequence[Run]) -> list[Run]:
 
 
 def layout_key(run: Run) -> tuple[str, int]:
-    return str(get(run.metrics, f"{LAYOUT}.mesh")), int(get(run.metrics, f"{LAYOUT}.layout_seed"))
+    return str(get(run.metrics, f"{OBJECT_LAYOUT}.mesh")), int(
+        get(run.metrics, f"{OBJECT_LAYOUT}.layout_seed")
+    )
 
 
 def setting_text(run: Run) -> str:
@@ -62,7 +63,7 @@ def layout_rows(runs: Sequence[Run]) -> tuple[list[list[str]], dict[tuple[str, i
         groups.setdefault(layout_key(run), []).append(run)
     rows, per_layout = [], {}
     for (mesh, seed), members in groups.items():
-        made = get(members[0].metrics, LAYOUT)
+        made = get(members[0].metrics, OBJECT_LAYOUT)
         regions = ", ".join(made.get("regions") or [])
         per_layout[(mesh, seed)] = T.mean(T.values_of(members, MEAN_CLASS))
         rows.append(

@@ -247,9 +247,7 @@ class SimSensor(IndexedSensor):
             ):
                 log.warning("frame %d planned without the advice of frame %d", index, wanted)
                 return self._advice
-            if self.advice_lag == 1:
-                return self._advice  # frame index - 1's: the mapper has mapped no later one
-            return self._advices.get(wanted)
+            return self._advices.get(wanted)  # lag 1: the newest (no later frame is mapped)
 
     def touch_plan(self) -> dict | None:
         """What the active policy did: its choices and regrasps (None for policy=scripted)."""
