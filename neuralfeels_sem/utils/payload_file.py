@@ -12,6 +12,20 @@ from neuralfeels_sem.core.errors import DataError
 from neuralfeels_sem.utils.atomic import atomic_write
 
 
+def stored_state(model: torch.nn.Module, fp16: bool) -> dict[str, torch.Tensor]:
+    """`model`'s tensors detached on the CPU, floating ones in half precision when `fp16`
+    (the shipped assets' storage)."""
+    state = {k: v.detach().cpu().clone() for k, v in model.state_dict().items()}
+    if fp16:
+        state = {k: v.half() if v.is_floating_point() else v for k, v in state.items()}
+    return state
+
+
+def float_state(state: dict[str, torch.Tensor]) -> dict[str, torch.Tensor]:
+    """A stored state with its floating tensors in fp32, as a model is built from it."""
+    return {k: v.float() if v.is_floating_point() else v for k, v in state.items()}
+
+
 def save_payload(payload: dict, path: str | Path) -> Path:
     """torch.save `payload` at `path`, never leaving a half-written file behind."""
     path = Path(path)

@@ -20,7 +20,7 @@ import torch
 from torch import nn
 
 from neuralfeels_sem.perception.classifier.model import ARCH, build_model
-from neuralfeels_sem.utils.payload_file import load_payload, save_payload
+from neuralfeels_sem.utils.payload_file import float_state, load_payload, save_payload, stored_state
 
 FORMAT = "neuralfeels_sem.classifier/1"
 
@@ -37,8 +37,7 @@ class ClassifierCheckpoint:
     def build(self, device: torch.device | str = "cpu") -> nn.Module:
         """The model in eval mode, in fp32 (fp16 storage is only for shipping)."""
         model = build_model(len(self.class_names))
-        state = {k: v.float() if v.is_floating_point() else v for k, v in self.state_dict.items()}
-        model.load_state_dict(state, strict=True)
+        model.load_state_dict(float_state(self.state_dict), strict=True)
         return model.to(device).eval()
 
 
@@ -53,13 +52,10 @@ def save_checkpoint(
     fp16: bool = False,
 ) -> Path:
     path = Path(path)
-    state = {k: v.detach().cpu().clone() for k, v in model.state_dict().items()}
-    if fp16:
-        state = {k: v.half() if v.is_floating_point() else v for k, v in state.items()}
     payload = {
         "format": FORMAT,
         "arch": ARCH,
-        "state_dict": state,
+        "state_dict": stored_state(model, fp16),
         "class_names": list(class_names),
         "input_size": int(input_size),
         "mean": [float(v) for v in mean],

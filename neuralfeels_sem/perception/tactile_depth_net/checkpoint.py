@@ -19,7 +19,7 @@ import torch
 
 from neuralfeels_sem.core.errors import DataError
 from neuralfeels_sem.perception.tactile_depth_net.model import ARCH, TactileDepthNet, build_model
-from neuralfeels_sem.utils.payload_file import load_payload, save_payload
+from neuralfeels_sem.utils.payload_file import float_state, load_payload, save_payload, stored_state
 
 FORMAT = "neuralfeels_sem.tactile_depth/1"
 
@@ -34,8 +34,7 @@ class DepthNetCheckpoint:
     def build(self) -> TactileDepthNet:
         """The model in eval mode, in fp32 (fp16 storage is only for shipping)."""
         model = build_model(self.width)
-        state = {k: v.float() if v.is_floating_point() else v for k, v in self.state_dict.items()}
-        model.load_state_dict(state, strict=True)
+        model.load_state_dict(float_state(self.state_dict), strict=True)
         return model.eval()
 
 
@@ -47,13 +46,10 @@ def save_checkpoint(
     fp16: bool = False,
 ) -> Path:
     path = Path(path)
-    state = {k: v.detach().cpu().clone() for k, v in model.state_dict().items()}
-    if fp16:
-        state = {k: v.half() if v.is_floating_point() else v for k, v in state.items()}
     payload = {
         "format": FORMAT,
         "arch": ARCH,
-        "state_dict": state,
+        "state_dict": stored_state(model, fp16),
         "width": int(model.width),
         "input_size": [int(v) for v in input_size],
         "meta": dict(meta or {}),
