@@ -8,9 +8,11 @@ sweep varied (the aggregate's groups), and draws what applies:
   (abstentions count as not correctly labelled); bars of the per-job mean ± std of
   accuracy, coverage and all-touch accuracy (figure 4A/4B);
 - `matching_curves.png`: every run's mean-class and plain matching curves with the
-  majority-material map's level, final mean ± std in the legend (figure 5A);
-- `ablation.png`: headline metrics per group (mean ± std), clustered by object, with the
-  majority-material map marked on the matching panels;
+  majority-material map's level, final mean ± std in the legend (figure 5A); above
+  CROWDED_SETTINGS settings each run thin, the mean bold and the lowest finals named;
+- `ablation.png`: headline metrics per group (mean ± std), clustered by object (one
+  object: a bar per setting along the axis), with the majority-material map marked on
+  the matching panels;
 - `classifier_per_sensor.png`: from train/eval_classifier jobs' report.json, test accuracy
   per sensor (mean ± std over runs, as figure 3B);
 - `maps_grid.png`: every mapping job's final material map (its material_maps.png) with
@@ -27,6 +29,7 @@ import logging
 from pathlib import Path
 
 import numpy as np
+from matplotlib import colormaps
 from matplotlib.figure import Figure
 
 from neuralfeels_sem.viz.finger_material_plots import FINGER_ORDER, ordered, plot_finger_material
@@ -86,56 +89,99 @@ def _final(metrics: dict, key: str, curve_key: str) -> float | None:
     return float(curve[-1][2]) if curve else None
 
 
+# Above this many settings the curves are not told apart by colour and legend: each run is
+# a thin line, the mean over runs bold, and the lowest finals are named at their ends.
+CROWDED_SETTINGS = 8
+
+
 def plot_runs_matching(
     runs: list[tuple[dict, dict]], varying: list[str], path: Path, dpi: int = 120
 ) -> Path:
     """Every run's mean-class and plain matching curves, one colour per setting, with the
-    majority-material map's level dashed; final mean ± std per setting in the legends."""
+    majority-material map's level dashed; final mean ± std per setting in the legends
+    (above CROWDED_SETTINGS settings: the mean over runs and the lowest runs named)."""
     by_setting: dict[str, list[tuple[dict, dict]]] = {}
     for job, metrics in runs:
         by_setting.setdefault(_setting(job, varying), []).append((job, metrics))
     panels = [p for p in CURVE_PANELS if any(m.get(p[1]) for _, m in runs)]
     fig = Figure(figsize=(6.0 * len(panels), 4.4), layout="constrained")
     axes = fig.subplots(1, len(panels), squeeze=False)[0]
-    for ax, (key, curve_key, floor_key, label) in zip(axes, panels):
-        for k, (name, members) in enumerate(sorted(by_setting.items())):
-            colour = f"C{k % 10}"
-            finals = [f for _, m in members if (f := _final(m, key, curve_key)) is not None]
-            std = float(np.std(finals, ddof=1)) if len(finals) > 1 else 0.0
-            text = (
-                f"{name}: {np.mean(finals):.1f} ± {std:.1f}% (n={len(finals)})" if finals else name
-            )
-            for i, (_, metrics) in enumerate(members):
-                curve = np.asarray(metrics.get(curve_key) or [], dtype=np.float64).reshape(-1, 3)
-                ax.plot(
-                    curve[:, 1],
-                    curve[:, 2],
-                    color=colour,
-                    marker="o",
-                    markersize=3,
-                    alpha=0.85,
-                    label=text if i == 0 else None,
-                )
-            floors = [
-                float(m["baseline_majority"][floor_key])
-                for _, m in members
-                if (m.get("baseline_majority") or {}).get(floor_key) is not None
-            ]
-            if floors:
-                ax.axhline(
-                    np.mean(floors),
-                    color=colour,
-                    linestyle="--",
-                    linewidth=1,
-                    label=f"{name}: majority map {np.mean(floors):.1f}%",
-                )
+    draw = _draw_crowded if len(by_setting) > CROWDED_SETTINGS else _draw_per_setting
+    for ax, panel in zip(axes, panels):
+        draw(ax, sorted(by_setting.items()), panel)
         ax.set_xlabel("sensor time [s]")
-        ax.set_ylabel(label)
+        ax.set_ylabel(panel[3])
         ax.set_ylim(0, 100)
         ax.grid(alpha=0.3)
         ax.legend(fontsize=7, loc="lower right")
     axes[0].set_title("Matching over time (dashed: the majority-material map)")
     return _save(fig, path, dpi)
+
+
+def _curve(metrics: dict, curve_key: str) -> np.ndarray:
+    """(n, 3) rows of frame, sensor time, matching."""
+    return np.asarray(metrics.get(curve_key) or [], dtype=np.float64).reshape(-1, 3)
+
+
+def _floors(members: list[tuple[dict, dict]], floor_key: str) -> list[float]:
+    return [
+        float(m["baseline_majority"][floor_key])
+        for _, m in members
+        if (m.get("baseline_majority") or {}).get(floor_key) is not None
+    ]
+
+
+def _draw_per_setting(ax, settings: list[tuple[str, list]], panel: tuple) -> None:
+    """Each setting in its colour, its final mean ± std and its majority map in the legend."""
+    key, curve_key, floor_key, _ = panel
+    for k, (name, members) in enumerate(settings):
+        colour = f"C{k % 10}"
+        finals = [f for _, m in members if (f := _final(m, key, curve_key)) is not None]
+        std = float(np.std(finals, ddof=1)) if len(finals) > 1 else 0.0
+        text = f"{name}: {np.mean(finals):.1f} ± {std:.1f}% (n={len(finals)})" if finals else name
+        for i, (_, metrics) in enumerate(members):
+            curve = _curve(metrics, curve_key)
+            ax.plot(curve[:, 1], curve[:, 2], color=colour, marker="o", markersize=3,
+                    alpha=0.85, label=text if i == 0 else None)  # fmt: skip
+        if floors := _floors(members, floor_key):
+            ax.axhline(np.mean(floors), color=colour, linestyle="--", linewidth=1,
+                       label=f"{name}: majority map {np.mean(floors):.1f}%")  # fmt: skip
+
+
+def _draw_crowded(ax, settings: list[tuple[str, list]], panel: tuple, named: int = 3) -> None:
+    """Every run thin, the mean curve over runs bold, the mean majority map dashed, and the
+    `named` lowest finals labelled with their setting at the curve's end."""
+    key, curve_key, floor_key, _ = panel
+    curves, finals = [], []
+    for k, (name, members) in enumerate(settings):
+        colour = _spread_colour(k, len(settings))
+        for _, metrics in members:
+            curve = _curve(metrics, curve_key)
+            if len(curve):
+                ax.plot(curve[:, 1], curve[:, 2], color=colour, linewidth=0.8, alpha=0.6)
+                curves.append(curve)
+            if (final := _final(metrics, key, curve_key)) is not None and len(curve):
+                finals.append((final, name, float(curve[-1, 1])))
+    if curves:
+        times = np.unique(np.concatenate([c[:, 1] for c in curves]))
+        mean = np.mean([np.interp(times, c[:, 1], c[:, 2]) for c in curves], axis=0)
+        values = [f for f, _, _ in finals]
+        ax.plot(times, mean, color="black", linewidth=2.2,
+                label=f"mean of {len(curves)} runs: final {np.mean(values):.1f} ± "
+                f"{np.std(values, ddof=1) if len(values) > 1 else 0.0:.1f}%")  # fmt: skip
+    if floors := _floors([m for _, members in settings for m in members], floor_key):
+        ax.axhline(np.mean(floors), color="black", linestyle="--", linewidth=1,
+                   label=f"majority map, mean {np.mean(floors):.1f}%")  # fmt: skip
+    label_y = -np.inf
+    for final, name, end in sorted(finals)[:named]:
+        label_y = max(final, label_y + 4.0)  # close finals: each label 4 points above the last
+        ax.annotate(f"{name}: {final:.1f}%", (end, final), (end - 0.3, label_y - 2.0),
+                    fontsize=7, ha="right", va="center")  # fmt: skip
+
+
+def _spread_colour(k: int, n: int) -> tuple:
+    """The k-th of n colours spread over viridis (distinct beyond the 10 cycle colours)."""
+    return colormaps["viridis"](k / max(1, n - 1))
 
 
 def _group_setting(g: dict, axis_keys: list[str]) -> str:
@@ -159,9 +205,9 @@ def _draw_group_metric(
     clusters: list[str],
     settings: list[str],
     setting,
-    fixed: str,
+    cluster_of,
 ) -> None:
-    """One metric's panel: a bar per setting in each object cluster, plus the majority-map floor."""
+    """One metric's panel: a bar per setting in each cluster, plus the majority-map floor."""
     key, label, scale = metric
     width = 0.8 / len(settings)
     x = np.arange(len(clusters))
@@ -169,7 +215,7 @@ def _draw_group_metric(
         means, stds = np.full(len(clusters), np.nan), np.zeros(len(clusters))
         for g in groups:
             if setting(g) == name and key in g.get("metrics", {}):
-                c = clusters.index(str(g["group"].get("object", fixed)))
+                c = clusters.index(cluster_of(g))
                 means[c] = scale * g["metrics"][key]["mean"]
                 stds[c] = scale * g["metrics"][key]["std"]
         offset = x + (s - (len(settings) - 1) / 2) * width
@@ -179,7 +225,7 @@ def _draw_group_metric(
             width,
             yerr=stds,
             capsize=3,
-            label=name,
+            label=None if name == "all" else name,  # one unnamed series needs no legend
             edgecolor="black",
             linewidth=0.5,
         )
@@ -187,7 +233,7 @@ def _draw_group_metric(
         for g in groups:
             floor = g.get("metrics", {}).get(f"baseline_majority.{key}")
             if setting(g) == name and floor is not None:
-                floors[clusters.index(str(g["group"].get("object", fixed)))] = scale * floor["mean"]
+                floors[clusters.index(cluster_of(g))] = scale * floor["mean"]
         if not np.isnan(floors).all():
             ax.scatter(
                 offset,
@@ -198,7 +244,8 @@ def _draw_group_metric(
                 zorder=3,
                 label="majority-material map" if s == 0 else None,
             )
-    ax.set_xticks(x, clusters)
+    slanted = len(clusters) > 6
+    ax.set_xticks(x, clusters, rotation=40 if slanted else 0, ha="right" if slanted else "center")
     ax.set_ylabel(label)
     ax.grid(axis="y", alpha=0.3)
 
@@ -214,21 +261,28 @@ def plot_groups(summary: dict, path: Path, dpi: int = 120) -> Path | None:
     keys = sorted({k for g in groups for k in g.get("group", {})})
     axis_keys = [k for k in keys if k != "object"]
 
+    fixed, clusters = _group_clusters(summary, groups)
+
     def setting(g: dict) -> str:
         return _group_setting(g, axis_keys)
 
-    fixed, clusters = _group_clusters(summary, groups)
+    def cluster_of(g: dict) -> str:
+        return str(g["group"].get("object", fixed))
+
+    if len(clusters) == 1:  # one object: the settings along the axis, not told by colour
+        clusters, cluster_of, setting = sorted({setting(g) for g in groups}), setting, cluster_of
     settings = sorted({setting(g) for g in groups})
+    per_cluster = min(1.5 * len(settings) ** 0.5, 0.3 + 0.45 * len(settings))
     fig = Figure(
         figsize=(
-            max(5.0, 1.5 * len(clusters) * max(1, len(settings)) ** 0.5 + 2.5),
+            max(5.0, per_cluster * len(clusters) + 2.5),
             3.0 * len(metrics) + 0.3 * len(settings),
         ),
         layout="constrained",
     )
     axes = fig.subplots(len(metrics), 1, squeeze=False)[:, 0]
     for ax, metric in zip(axes, metrics):
-        _draw_group_metric(ax, groups, metric, clusters, settings, setting, fixed)
+        _draw_group_metric(ax, groups, metric, clusters, settings, setting, cluster_of)
     axes[0].set_title("Comparison per setting (mean ± std over trials)")
     fig.legend(*axes[0].get_legend_handles_labels(), loc="outside lower center", fontsize=8)
     return _save(fig, path, dpi)

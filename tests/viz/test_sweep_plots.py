@@ -254,3 +254,29 @@ def test_maps_grid_tiles_every_job_with_its_map(tmp_path: Path) -> None:
     }
     assert tile_title("seed=1001", metrics) == "seed=1001: mean-class 71.0% (majority 50.0%)"
     assert tile_title("seed=1003", {}) == "seed=1003"
+
+
+def test_a_sweep_of_many_objects_plots_readably(tmp_path: Path) -> None:
+    """experiment=unseen_objects: 20 settings of one axis. The curves' legend stays short
+    (the mean over runs, the majority map) and no axes collapse under it; the bars run
+    along the axis, one per setting."""
+    import warnings
+
+    sweep = tmp_path / "sweep"
+    for k in range(20):
+        final = 70.0 + k
+        metrics = {
+            "matching_mean_class_pct": final,
+            "matching_mean_class_curve": [[0, 0.0, 25.0], [10, 1.0, final]],
+            "matching_pct": final + 5.0,
+            "matching_curve": [[0, 0.0, 50.0], [10, 1.0, final + 5.0]],
+            "baseline_majority": {"matching_mean_class_pct": 25.0 + (k % 2) * 25.0},
+        }
+        write_job(sweep, str(k), [f"object.seed={1000 + k}", "seed=0"], metrics)
+    with warnings.catch_warnings():
+        warnings.simplefilter("error")  # matplotlib warns when a legend squeezes the axes away
+        paths = plot_experiment(summarize(sweep), sweep)
+    assert {p.name for p in paths} == {"matching_curves.png", "ablation.png"}
+    curves = assert_png(sweep / "matching_curves.png")
+    bars = assert_png(sweep / "ablation.png")
+    assert curves.shape[0] < 800 and bars.shape[1] < 3000, (curves.shape, bars.shape)
