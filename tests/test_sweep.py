@@ -52,3 +52,15 @@ def test_aggregate_marks_corrupt_and_failed_jobs(tmp_path: Path) -> None:
     assert [j["status"] for j in summary["jobs"]] == ["ok", "failed", "failed"]
     assert summary["failed"] == ["1", "2"]
     assert summary["groups"][0]["metrics"]["matching_pct"] == {"mean": 90.0, "std": 0.0, "n": 1}
+
+
+def test_aggregate_lists_jobs_in_number_order(tmp_path: Path) -> None:
+    """Job 2 before job 10, so the maps grid and the summary follow the sweep's order."""
+    from neuralfeels_sem.eval.aggregate import summarize
+
+    for job in ("0", "1", "2", "10", "11"):
+        (tmp_path / job / ".hydra").mkdir(parents=True)
+        (tmp_path / job / ".hydra" / "overrides.yaml").write_text(f"- seed={job}\n")
+        (tmp_path / job / "metrics.json").write_text('{"matching_pct": 90.0}')
+    (tmp_path / "plots").mkdir()  # not a job: no overrides
+    assert [j["job"] for j in summarize(tmp_path)["jobs"]] == ["0", "1", "2", "10", "11"]

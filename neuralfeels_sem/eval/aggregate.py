@@ -120,11 +120,14 @@ def group_jobs(jobs: list[dict]) -> list[dict]:
     return groups
 
 
+def _job_order(path: Path) -> tuple:
+    """Hydra's numbered job directories in number order (2 before 10), others after by name."""
+    return (0, int(path.name), "") if path.name.isdigit() else (1, 0, path.name)
+
+
 def summarize(sweep_dir: Path) -> dict:
     jobs = [
-        j
-        for d in sorted(sweep_dir.iterdir(), key=lambda p: p.name)
-        if d.is_dir() and (j := read_job(d))
+        j for d in sorted(sweep_dir.iterdir(), key=_job_order) if d.is_dir() and (j := read_job(d))
     ]
     summary = {
         "sweep_dir": str(sweep_dir),
