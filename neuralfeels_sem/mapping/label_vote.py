@@ -33,7 +33,6 @@ class LabelVote:
     support_radius: float | None
     steady_frames: int
     press_reach: float | None
-    steady_stands: bool = False
 
     def __post_init__(self) -> None:
         if self.press_reach is not None and self.press_reach <= 0:
@@ -56,7 +55,6 @@ class LabelVote:
                 else float(config.label_vote_support_radius)
             ),
             steady_frames=int(config.label_vote_steady_frames),
-            steady_stands=bool(config.label_vote_steady_stands),
             press_reach=(
                 None
                 if config.label_vote_press_reach is None
@@ -103,7 +101,6 @@ class LabelVote:
             events,
             self.support_radius,
             steady,
-            self.steady_stands,
         )
 
 
@@ -160,7 +157,6 @@ def outvoted_touches(
     events: torch.Tensor | None = None,
     support_radius: float | None = None,
     steady: torch.Tensor | None = None,
-    steady_stands: bool = False,
 ) -> torch.Tensor:
     """(T,) bool: labelled touches that their labelled neighbours contradict or do not back.
 
@@ -176,9 +172,6 @@ def outvoted_touches(
     agreeing neighbours are then counted as other presses, not frames. The frames of one
     press repeat one imprint, and a misclassified imprint is usually misclassified in all
     of them, so they must not back each other. None: every touch is its own press.
-
-    `steady` (T,) marks touches their own press reads steadily (steady_presses): they are
-    spared the support rule, and with `steady_stands` the neighbours' contradiction too.
     """
     if centroids.ndim != 2 or centroids.shape[1] != 3 or labels.shape != centroids.shape[:1]:
         raise ValueError(
@@ -192,8 +185,6 @@ def outvoted_touches(
     nearest, agreeing = _nearest_per_press(torch.cdist(centroids, centroids), labels, events)
     neighbours, agree = (nearest < radius).sum(1), (agreeing < radius).sum(1)
     outvoted = (neighbours >= min_neighbours) & (agree < min_agreement * neighbours)
-    if steady is not None and steady_stands:
-        outvoted &= ~steady
     if min_support > 0:
         support = radius if support_radius is None else support_radius
         unsupported = (agreeing < support).sum(1) < min_support

@@ -108,10 +108,6 @@ class MapperConfig:
     # 0 = off. 3: on 29 development objects it keeps the one press that is all a small
     # part gets, at a small cost on the shipped objects (docs/field_and_mapper.md).
     label_vote_steady_frames: int = 3
-    # true: a steady press stands against contradicting neighbours too (a small part
-    # pressed steadily among many presses of its surroundings); false: it is only spared
-    # the support rule.
-    label_vote_steady_stands: bool = False
     # A press ends where its finger has slid this far (metres) from the press's first touch
     # (label_vote.press_events); null: presses by time alone. conf/mapping/online.yaml sets
     # 0.01 at sensor.pace=realtime.

@@ -196,31 +196,6 @@ def test_frames_of_one_press_do_not_back_each_other() -> None:
         outvoted_touches(lone, torch.tensor([1, 1]), 0.01, 3, 0.25, 1, events=same[:1])
 
 
-def test_a_steady_press_stands_against_its_neighbours_only_when_asked() -> None:
-    """A small metal insert pressed steadily once (3 frames) among four fabric presses:
-    the neighbours contradict it (0 of 4 agree), so it is outvoted unless steady presses
-    stand; the support rule alone never outvotes it (it is steady)."""
-    c = torch.tensor([[0.0, 0, 0], [0.003, 0, 0], [0, 0.003, 0], [-0.003, 0, 0]]
-                     + [[0.001, 0.001, 0]] * 3)  # fmt: skip
-    labels = torch.tensor([2, 2, 2, 2, 1, 1, 1])
-    events = torch.tensor([0, 1, 2, 3, 4, 4, 4])
-    steady = torch.tensor([False] * 4 + [True] * 3)
-    common = (c, labels, 0.01, 3, 0.25, 1, events, None, steady)
-    assert outvoted_touches(*common).tolist() == [False] * 4 + [True] * 3
-    assert not outvoted_touches(*common, steady_stands=True).any()
-    # Through the config: the same press with label_vote_steady_stands on and off.
-    axis = torch.tensor([0.0, 0.0, 1.0])
-    for stands in (False, True):
-        touches = TouchBuffer(CPU, vote(radius=0.01, min_support=1, steady_frames=3,
-                                        press_gap=2, steady_stands=stands))  # fmt: skip
-        for frame, (point, label) in enumerate(zip(c.tolist(), labels.tolist())):
-            finger = "index" if frame >= 4 else ("middle", "ring", "thumb", "middle")[frame]
-            touches.add(torch.tensor([point] * 4), axis, label=label, weight=1.0,
-                        finger=finger, frame_index=frame)  # fmt: skip
-        used = torch.cat(touches.point_labels_used())
-        assert bool((used == 1).any()) is stands
-
-
 def test_touch_buffer_counts_presses_and_keeps_them_in_its_state() -> None:
     axis = torch.tensor([0.0, 0.0, 1.0])
     touches = TouchBuffer(CPU, vote(radius=0.01, min_support=1, press_gap=2))
