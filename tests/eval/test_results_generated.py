@@ -144,3 +144,34 @@ def test_a_preset_picked_generated_object_is_the_same_object(tmp_path: Path) -> 
     write_job(tracked, "0", overrides, metrics)
     pose = section(generate(tmp_path, reference, tracked), "Pose tracking")
     assert cells(pose, "object=random")[8] == "90.0"
+
+
+def test_evaluation_sweeps_of_one_setting_are_pooled_with_each_run_shown(tmp_path: Path) -> None:
+    """experiment=unseen_objects at mapping seeds 0 and 1 (two sweeps): one table, each
+    object's mean with its runs beside it, and how many runs reach the target; a sweep of
+    another setting on the same objects keeps a table of its own."""
+    first, second = tmp_path / "multirun" / "eval_s0", tmp_path / "multirun" / "eval_s1"
+    other = tmp_path / "multirun" / "eval_active"
+    write_generated(first, {1000: 98.0, 1001: 90.0}, [])
+    write_generated(second, {1000: 50.0, 1001: 92.0}, [])
+    write_generated(other, {1000: 85.0, 1001: 80.0}, ["sensor.policy=active"])
+    part = section(generate(tmp_path, first, second, other), "Generated objects")
+    assert "multirun/eval_s0`, `" in part and part.count("multirun/eval_s1`") == 1
+    assert cells(part, "1000")[3:5] == ["2", "74.0 (98.0, 50.0)"]
+    assert (
+        "at or above 80 %: 1 of 2 objects; lowest 74.0 (seed 1000). Runs at or above: 3 of 4."
+        in part
+    )
+    assert "multirun/eval_active`" in part and "its settings compared" not in part
+
+
+def test_an_evaluation_sweep_of_two_settings_compares_them(tmp_path: Path) -> None:
+    sweep = tmp_path / "multirun" / "eval_policies"
+    k = write_generated(sweep, {1000: 90.0, 1001: 70.0}, [])
+    write_generated(sweep, {1000: 95.0, 1001: 85.0}, ["sensor.policy=active"], k)
+    part = section(generate(tmp_path, sweep), "Generated objects")
+    assert "multirun/eval_policies`: its settings compared" in part
+    assert cells(part, "`sensor.policy=active` (oracles: pose)")[1:3] == [
+        "95.0, 85.0",
+        "**90.0 ± 7.1**",
+    ]
