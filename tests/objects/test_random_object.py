@@ -120,3 +120,5 @@ def test_unseen_objects_experiment_sweeps_the_twenty_evaluation_seeds() -> None:
     params = cfg.hydra.sweeper.params
     parsed = OverridesParser.create().parse_overrides([f"object.seed={params['object.seed']}"])
     assert list(parsed[0].sweep_iterator()) == list(range(1000, 1020))
+    seeds = OverridesParser.create().parse_overrides([f"seed={params['seed']}"])
+    assert list(seeds[0].sweep_iterator()) == [0, 1]  # two mapping seeds per object
