@@ -67,6 +67,14 @@ def setting_text(run: Run) -> str:
     return f"{setting} (oracles: {oracles_cell(run)})"
 
 
+def by_setting(runs: Sequence[Run]) -> dict[str, list[Run]]:
+    """{setting_text: its runs}, in the order the settings first come."""
+    groups: dict[str, list[Run]] = {}
+    for run in runs:
+        groups.setdefault(setting_text(run), []).append(run)
+    return groups
+
+
 def by_object(runs: Sequence[Run]) -> dict[int, list[Run]]:
     groups: dict[int, list[Run]] = {}
     for run in sorted(runs, key=object_seed):
@@ -225,10 +233,7 @@ def evaluation_tables(members: Sequence[tuple[str, Run]]) -> list[str]:
         labels = ", ".join(f"`{label}`" for label in dict.fromkeys(lab for lab, _ in pooled))
         lines += [f"### {labels}", "", *setting_table([run for _, run in pooled]), ""]
     for label in dict.fromkeys(lab for lab, _ in members):  # one code version each
-        own: dict[str, list[Run]] = {}
-        for lab, run in members:
-            if lab == label:
-                own.setdefault(setting_text(run), []).append(run)
+        own = by_setting([run for lab, run in members if lab == label])
         if len(own) > 1:
             lines += [f"### `{label}`: its settings compared", "", *comparison_table(own), ""]
     return lines
@@ -268,9 +273,7 @@ def development_tables(runs: Sequence[Run]) -> list[str]:
     """Every source's development runs together: the settings compared with today's
     defaults on the objects both ran, then the objects of today's defaults (when they
     ran)."""
-    settings: dict[str, list[Run]] = {}
-    for run in runs:
-        settings.setdefault(setting_text(run), []).append(run)
+    settings = by_setting(runs)
     lines = ["### Development objects, every source", ""]
     if len(settings) > 1:
         lines += comparisons_with_defaults(settings)

@@ -44,9 +44,8 @@ def scanned_references(runs: Sequence[Run]) -> list[Run]:
 
 
 def layout_key(run: Run) -> tuple[str, int]:
-    return str(get(run.metrics, f"{OBJECT_LAYOUT}.mesh")), int(
-        get(run.metrics, f"{OBJECT_LAYOUT}.layout_seed")
-    )
+    made = get(run.metrics, OBJECT_LAYOUT)
+    return str(made["mesh"]), int(made["layout_seed"])
 
 
 def setting_text(run: Run) -> str:
