@@ -283,6 +283,36 @@ def development_tables(runs: Sequence[Run]) -> list[str]:
     return lines
 
 
+def evaluation_runs_at_defaults(sources: Sequence[Source]) -> list[Run]:
+    """Today's default-config runs on the evaluation objects, every source's pooled."""
+    return [
+        run
+        for source in sources
+        for run in generated_references(source.runs)
+        if object_seed(run) >= EVALUATION_SEEDS_FROM and not setting_rest(run)
+    ]
+
+
+def evaluation_summary(runs: Sequence[Run]) -> str:
+    """One sentence on the evaluation set at today's defaults (the README's, beside its
+    table): mean-class over the objects (each object's runs averaged first) beside the
+    majority map, the runs at TARGET_PCT and the lowest object."""
+    per_object = object_means(runs)
+    floor = mean(list(object_means(runs, FLOOR).values()))
+    seeds = sorted({run.seed for run in runs if run.seed is not None})
+    at_target = sum(v >= TARGET_PCT for v in values_of(runs, MEAN_CLASS))
+    low = min(per_object, key=per_object.get)
+    oracles = ", ".join(sorted({oracles_cell(run) for run in runs}))
+    return (
+        f"**Objects nobody tuned on**: the {len(per_object)} generated evaluation objects "
+        f"(`experiment=unseen_objects`; {len(runs)} runs, mapping seeds "
+        f"{', '.join(map(str, seeds)) or 'not recorded'}; oracles: {oracles}) map "
+        f"**{fmt(mean(list(per_object.values())))} %** mean-class on average against "
+        f"{fmt(floor)} % for the majority map; {at_target} of {len(runs)} runs at or above "
+        f"{fmt(TARGET_PCT, 0)} %, the lowest object {fmt(per_object[low])} % (seed {low})."
+    )
+
+
 def generated_section(sources: Sequence[Source]) -> list[str]:
     """Evaluation objects per setting, pooled over the sweeps that ran it (each run once to
     report); development objects of every source pooled, so settings from different sweeps

@@ -175,3 +175,29 @@ def test_an_evaluation_sweep_of_two_settings_compares_them(tmp_path: Path) -> No
         "95.0, 85.0",
         "**90.0 ± 7.1**",
     ]
+
+
+def test_the_readme_states_the_evaluation_set_at_todays_defaults(tmp_path: Path) -> None:
+    """Beside its table the front page gets one generated sentence on the evaluation
+    objects: today's default-config runs of every sweep pooled, other settings left out."""
+    from neuralfeels_sem.eval.results_page import README_BEGIN, README_END
+    from neuralfeels_sem.tasks.results_page import main
+    from tests.eval.test_results_page import write_object_sweep
+
+    shipped = write_object_sweep(tmp_path / "multirun" / "shipped")
+    first, second = tmp_path / "multirun" / "eval_s0", tmp_path / "multirun" / "eval_s1"
+    write_generated(first, {1000: 98.0, 1001: 90.0}, [])
+    write_generated(second, {1000: 50.0, 1001: 92.0}, ["seed=1"])
+    write_generated(tmp_path / "multirun" / "active", {1000: 10.0}, ["sensor.policy=active"])
+    readme = tmp_path / "README.md"
+    readme.write_text(f"# Front\n{README_BEGIN}\n| old |\n{README_END}\n")
+    dirs = [str(d) for d in (shipped, first, second, tmp_path / "multirun" / "active")]
+    assert main(["--out", str(tmp_path / "results.md"), "--readme", str(readme), *dirs]) == 0
+    block = readme.read_text().split(README_BEGIN)[1].split(README_END)[0].strip()
+    sentence = block.split("\n\n")[-1]
+    assert sentence.startswith("**Objects nobody tuned on**: the 2 generated evaluation objects")
+    assert "4 runs, mapping seeds 0, 1; oracles: pose" in sentence
+    # objects 1000 (74.0) and 1001 (91.0): mean 82.5; majority map 50.0
+    assert "**82.5 %** mean-class on average against 50.0 % for the majority map" in sentence
+    assert "3 of 4 runs at or above 80 %, the lowest object 74.0 % (seed 1000)." in sentence
+    assert sentence.rstrip().endswith(".*") and "*Runs: " in sentence
