@@ -2,10 +2,10 @@
 
 `task=collect_tactile` presses each DIGIT against chosen material points; the rig's
 finger-gaiting policy instead touches wherever its fingers land, often with tilted pads
-whose imprints are strips along the sensor edge. This runs the rig on shipped objects
+whose imprints are strips along the sensor edge. This runs the rig on shipped objects,
+or generated development objects (`random_K`, K below 1000: `--generated 20-59`),
 exactly as `sensor=sim` does by default (same motion and seeds, so the same DIGIT
-backgrounds and frames) and
-writes every frame in contact (the classifier's contact gate) whose ground-truth
+backgrounds and frames) and writes every frame in contact (the classifier's contact gate) whose ground-truth
 material is at least `min_purity` one class, in the ImageFolder layout
 `<root>/<sensor>/<material>/<object>_<seed>_<frame>.png` that `task=eval_classifier`
 reads, with `_backgrounds/<sensor>.png` and `touches.json` (every gated touch: object,
@@ -21,6 +21,7 @@ from __future__ import annotations
 
 import argparse
 import json
+import re
 from collections.abc import Sequence
 from pathlib import Path
 
@@ -32,13 +33,36 @@ from neuralfeels_sem.configs.sensor_sim import SimSensorConfig
 from neuralfeels_sem.core.hand import FINGERS
 from neuralfeels_sem.core.materials import DEFAULT_MATERIALS
 from neuralfeels_sem.objects.library import make_object
+from neuralfeels_sem.objects.material_object import MaterialObject
 from neuralfeels_sem.objects.procedural import RECIPES
+from neuralfeels_sem.objects.random_object import make_random_object
 from neuralfeels_sem.perception.contact import ContactGate, edge_share
 from neuralfeels_sem.sim.backgrounds import finger_seed
 from neuralfeels_sem.sim.rig import SimRig
 
 CLASSES = tuple(DEFAULT_MATERIALS)
 EDGE_PX = 16  # the classifier's default edge band
+GENERATED = re.compile(r"random_(\d+)")  # object=random object.seed=K, named random_K
+EVALUATION_SEEDS_FROM = 1000  # generated objects from here on are the evaluation set
+
+
+def build_object(name: str, classes: Sequence[str]) -> MaterialObject:
+    """A shipped object by name, or generated development object K as `random_K`."""
+    generated = GENERATED.fullmatch(name)
+    if generated is None:
+        if name not in RECIPES:
+            raise ValueError(
+                f"object {name!r} is neither a shipped object ({', '.join(sorted(RECIPES))}) "
+                "nor a generated one (random_K)"
+            )
+        return make_object(name, tuple(classes))
+    seed = int(generated.group(1))
+    if seed >= EVALUATION_SEEDS_FROM:
+        raise ValueError(
+            f"object {name!r}: generated seeds from {EVALUATION_SEEDS_FROM} are the evaluation "
+            "set, never data to train or choose settings on; use a seed below it"
+        )
+    return make_random_object(seed, tuple(classes))
 
 
 def _write_rgb(path: Path, image: np.ndarray) -> None:
@@ -110,15 +134,12 @@ def collect(
     from neuralfeels_sem.sim.tactile_renderer import DigitRenderer
 
     root = Path(root)
-    unknown = [name for name in objects if name not in RECIPES]
-    if unknown:
-        raise ValueError(f"objects {unknown} are not shipped objects; pick from {sorted(RECIPES)}")
+    built = [build_object(name, classes) for name in objects]  # bad names fail before any work
     gate = ContactGate()
     records: list[dict] = []
     progress = tqdm(total=len(objects) * frames, desc="rig touches", unit="frame")
     motion = SimSensorConfig().rig_motion()  # the default sensor=sim motion
-    for name in objects:
-        obj = make_object(name, tuple(classes))
+    for name, obj in zip(objects, built, strict=True):
         rig = SimRig(obj, seed=seed, **motion)
         rig.open()
         renderers = {f: DigitRenderer(obj, seed=finger_seed(seed, f)) for f in FINGERS}
@@ -142,12 +163,28 @@ def collect(
 def main(argv: Sequence[str] | None = None) -> None:
     parser = argparse.ArgumentParser(description=__doc__.splitlines()[0])
     parser.add_argument("root", help="output folder (ImageFolder layout)")
-    parser.add_argument("--objects", nargs="+", default=sorted(RECIPES))
+    parser.add_argument(
+        "--objects",
+        nargs="*",
+        default=None,
+        help="shipped objects, or generated development objects as random_K (K below 1000); "
+        "default: every shipped object unless --generated is given",
+    )
+    parser.add_argument(
+        "--generated", default=None, help="add generated development objects K, e.g. 20-59"
+    )
     parser.add_argument("--seed", type=int, default=0)
     parser.add_argument("--frames", type=int, default=100, help="frames per object (10 fps)")
     parser.add_argument("--min-purity", type=float, default=0.95)
     args = parser.parse_args(argv)
-    records = collect(args.root, args.objects, args.seed, args.frames, min_purity=args.min_purity)
+    objects = list(args.objects or ([] if args.generated else sorted(RECIPES)))
+    if args.generated is not None:
+        low, _, high = args.generated.partition("-")
+        objects += [f"random_{k}" for k in range(int(low), int(high or low) + 1)]
+    try:
+        records = collect(args.root, objects, args.seed, args.frames, min_purity=args.min_purity)
+    except ValueError as exc:
+        parser.error(str(exc))
     shares = np.array([r["edge_share"] for r in records]) if records else np.zeros(1)
     written = sum(r["written"] for r in records)
     print(

@@ -42,5 +42,19 @@ def test_rig_touches_are_written_with_their_ground_truth_material(tmp_path: Path
 
 
 def test_unknown_object_is_a_one_line_error(tmp_path: Path) -> None:
-    with pytest.raises(ValueError, match="shipped objects"):
+    with pytest.raises(ValueError, match="neither a shipped object"):
         collect(tmp_path, ["teapot"], frames=1)
+    # the evaluation set is never data: refused before anything is written
+    with pytest.raises(ValueError, match="evaluation set"):
+        collect(tmp_path, ["random_2", "random_1003"], frames=1)
+    assert not any(tmp_path.iterdir())
+
+
+def test_generated_development_objects_are_touched_as_in_a_map_run(tmp_path: Path) -> None:
+    from neuralfeels_sem.objects.random_object import make_random_object
+
+    records = collect(tmp_path, ["random_3"], seed=0, frames=12)
+    obj = make_random_object(3, DEFAULT_MATERIALS)
+    assert records and {r["object"] for r in records} == {"random_3"}
+    assert {r["material"] for r in records} <= set(obj.generation["materials"])
+    assert len(list(tmp_path.glob("*/*/random_3_0_*.png"))) == sum(r["written"] for r in records)
