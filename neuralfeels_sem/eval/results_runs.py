@@ -22,6 +22,8 @@ from neuralfeels_sem.eval.results_drift import (
     show,
     unread_beside,
 )
+from neuralfeels_sem.eval.results_weights import weights_drift
+from neuralfeels_sem.utils.nested import flatten
 
 # Overrides that do not change what a run measures.
 # `perception` (a preset of oracles) is not a setting here: the object tables have an
@@ -98,10 +100,13 @@ class Run:
 
     @cached_property
     def drift(self) -> dict[str, tuple]:
-        """{key: (value the run used, today's default)} for defaults changed since the run."""
+        """{key: (value the run used, today's default)} for defaults changed since the run,
+        the shipped networks' weights among them (results_weights.py)."""
         if self.today is None or self.config is None:
             return {}
-        return drift(self.config, self.overrides, self.today)
+        commit = get(self.metrics, "code.commit")
+        weights = weights_drift(flatten(self.config), self.overrides, commit)
+        return drift(self.config, self.overrides, self.today) | weights
 
     @property
     def single_material(self) -> bool:
