@@ -5,8 +5,8 @@ finger-gaiting policy instead touches wherever its fingers land, often with tilt
 whose imprints are strips along the sensor edge. This runs the rig on shipped objects,
 or generated development objects (`random_K`, K below 1000: `--generated 20-59`),
 exactly as `sensor=sim` does by default (same motion and seeds, so the same DIGIT
-backgrounds and frames) and writes every frame in contact (the classifier's contact gate) whose ground-truth
-material is at least `min_purity` one class, in the ImageFolder layout
+backgrounds and frames) and writes every frame in contact (the classifier's contact
+gate) whose ground-truth material is at least `min_purity` one class, in the ImageFolder layout
 `<root>/<sensor>/<material>/<object>_<seed>_<frame>.png` that `task=eval_classifier`
 reads, with `_backgrounds/<sensor>.png` and `touches.json` (every gated touch: object,
 frame, finger, majority class, purity, contact pixels, edge share).
@@ -35,7 +35,7 @@ from neuralfeels_sem.core.materials import DEFAULT_MATERIALS
 from neuralfeels_sem.objects.library import make_object
 from neuralfeels_sem.objects.material_object import MaterialObject
 from neuralfeels_sem.objects.procedural import RECIPES
-from neuralfeels_sem.objects.random_object import make_random_object
+from neuralfeels_sem.objects.random_object import EVALUATION_SEEDS_FROM, make_random_object
 from neuralfeels_sem.perception.contact import ContactGate, edge_share
 from neuralfeels_sem.sim.backgrounds import finger_seed
 from neuralfeels_sem.sim.rig import SimRig
@@ -43,7 +43,6 @@ from neuralfeels_sem.sim.rig import SimRig
 CLASSES = tuple(DEFAULT_MATERIALS)
 EDGE_PX = 16  # the classifier's default edge band
 GENERATED = re.compile(r"random_(\d+)")  # object=random object.seed=K, named random_K
-EVALUATION_SEEDS_FROM = 1000  # generated objects from here on are the evaluation set
 
 
 def build_object(name: str, classes: Sequence[str]) -> MaterialObject:

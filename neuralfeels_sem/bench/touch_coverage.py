@@ -21,7 +21,7 @@ import numpy as np
 
 from neuralfeels_sem.configs.sensor_sim import SimSensorConfig
 from neuralfeels_sem.core.materials import DEFAULT_MATERIALS
-from neuralfeels_sem.objects.random_object import make_random_object
+from neuralfeels_sem.objects.random_object import EVALUATION_SEEDS_FROM, make_random_object
 from neuralfeels_sem.sim.rig import SimRig
 from neuralfeels_sem.sim.touch_planner import TouchAdvice, TouchPlanner, TouchScoreConfig
 
@@ -86,8 +86,11 @@ def main() -> None:
     parser.add_argument("--out", type=Path, default=None)
     args = parser.parse_args()
     seeds = _seeds(args.seeds)
-    if max(seeds) >= 1000:
-        parser.error("object seeds from 1000 up are the evaluation set: use seeds below 1000")
+    if max(seeds) >= EVALUATION_SEEDS_FROM:
+        parser.error(
+            f"object seeds from {EVALUATION_SEEDS_FROM} up are the evaluation set: "
+            f"use seeds below {EVALUATION_SEEDS_FROM}"
+        )
     result = run(seeds, args.min_frames)
     text = json.dumps(result, indent=1)
     if args.out is not None:

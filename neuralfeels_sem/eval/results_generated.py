@@ -25,9 +25,9 @@ from neuralfeels_sem.eval.results_tables import (
     table,
     values_of,
 )
+from neuralfeels_sem.objects.random_object import EVALUATION_SEEDS_FROM
 
 TARGET_PCT = 80.0  # the per-object floor the unseen-objects benchmark asks for
-EVALUATION_SEEDS_FROM = 1000  # object seeds from here on are the evaluation set
 GENERATION = "config.object_generation"  # what make_random_object built (metrics.json)
 MEAN_CLASS = "matching_mean_class_pct"
 FLOOR = "baseline_majority.matching_mean_class_pct"

@@ -31,6 +31,7 @@ from neuralfeels_sem.objects.random_shapes import FAMILIES
 
 log = logging.getLogger(__name__)
 
+EVALUATION_SEEDS_FROM = 1000  # seeds from here on are the evaluation set, never tuned on
 SIZE_RANGE_M = (0.05, 0.20)  # largest extent of every generated object
 TARGET_FACES = 20_000  # as the shipped objects (the 1 mm tactile renderer sees smooth geometry)
 _DRAW_BOX_M = 0.2  # families draw inside +-this box before scaling
