@@ -28,6 +28,9 @@ class EfficientNetClassifierConfig:
     # against 90.2 % without, three seeds). 0: off.
     edge_streak_frames: int = 2
     edge_streak_confidence: float = 0.99
+    # Not null: an imprint past max_edge_share read at >= this keeps its label (full trust)
+    # on its own, for a checkpoint adapted to the rig's edge imprints. null: off.
+    edge_min_confidence: float | None = None
     edge_px: int = 16
     contact_threshold: float = 30.0
     contact_min_area: float = 0.01
@@ -102,6 +105,11 @@ class EfficientNetClassifierConfig:
         if not 0.0 < self.edge_streak_confidence <= 1.0:
             raise ValueError(
                 f"classifier.edge_streak_confidence={self.edge_streak_confidence} must be in (0, 1]"
+            )
+        if self.edge_min_confidence is not None and not 0.0 < self.edge_min_confidence <= 1.0:
+            raise ValueError(
+                f"classifier.edge_min_confidence={self.edge_min_confidence} must be in (0, 1] "
+                "or null (off)"
             )
         if self.edge_px < 0:
             raise ValueError(f"classifier.edge_px={self.edge_px} must be >= 0")

@@ -38,6 +38,13 @@ def test_streak_counts_consecutive_confident_readings_per_finger() -> None:
     assert not EdgeStreak(frames=0).trusted("index", 1, 1.0)  # off
 
 
+def test_an_edge_reading_confident_enough_is_trusted_alone() -> None:
+    streak = EdgeStreak(frames=2, confidence=0.99, alone=0.995)
+    assert streak.trusted("index", 1, 0.995)  # no streak needed at that confidence
+    assert not streak.trusted("index", 1, 0.994)  # below it, the streak rule as before
+    assert EdgeStreak(frames=0, alone=0.9).trusted("ring", 0, 0.95)  # with the streak off too
+
+
 def test_bad_settings_are_value_errors() -> None:
     with pytest.raises(ValueError, match="edge_streak_frames"):
         EdgeStreak(frames=-1)
@@ -47,6 +54,10 @@ def test_bad_settings_are_value_errors() -> None:
         EfficientNetClassifierConfig(edge_streak_frames=-2)
     with pytest.raises(ValueError, match="classifier.edge_streak_confidence"):
         EfficientNetClassifierConfig(edge_streak_confidence=1.5)
+    with pytest.raises(ValueError, match="edge_min_confidence"):
+        EdgeStreak(alone=0.0)
+    with pytest.raises(ValueError, match="classifier.edge_min_confidence"):
+        EfficientNetClassifierConfig(edge_min_confidence=1.2)
 
 
 def one_hot(top: int, confidence: float) -> np.ndarray:

@@ -22,17 +22,26 @@ class EdgeStreak:
 
     frames: int = 0
     confidence: float = 0.99
+    # An edge reading at or above this probability is trusted on its own (None: never): a
+    # model adapted to the rig's own edge imprints (bench/rig_touches.py) reads them so.
+    alone: float | None = None
     _runs: dict[str, tuple[int, int]] = field(default_factory=dict)  # finger -> (label, run)
 
     def __post_init__(self) -> None:
+        self.frames, self.confidence = int(self.frames), float(self.confidence)
         if self.frames < 0:
             raise ValueError(f"edge_streak_frames={self.frames} must be >= 0 (0: off)")
         if not 0.0 < self.confidence <= 1.0:
             raise ValueError(f"edge_streak_confidence={self.confidence} must be in (0, 1]")
+        if self.alone is not None and not 0.0 < self.alone <= 1.0:
+            raise ValueError(f"edge_min_confidence={self.alone} must be in (0, 1] or null (off)")
 
     def trusted(self, finger: str, top: int, confidence: float) -> bool:
         """True when this reading (top class, its probability) follows at least `frames`
-        confident readings of `top` by the same finger on the frames just before."""
+        confident readings of `top` by the same finger on the frames just before, or is
+        itself at least `alone`."""
+        if self.alone is not None and confidence >= self.alone:
+            return True
         label, run = self._runs.get(finger, (-1, 0))
         return (
             self.frames > 0

@@ -52,10 +52,9 @@ class MaterialClassifier:
     min_confidence: below this top probability a touch gets no label.
     max_edge_share, edge_px: a touch with more than this share of its contact pixels within
         `edge_px` of the sensor's border (an imprint cut off by the edge, typical of a tilted
-        pad) gets no label either (1.0 = never). The defaults (0.8, 0.5) were chosen on the
-        rig's own touches (`bench/rig_touches.py`, seed 0, seven objects): the shipped model
-        labels 63 % of them, 99.3 % correctly; thinner strips are often wrong even when
-        the model is confident.
+        pad) gets no label either (1.0 = never), unless edge_label_weight, the edge streak
+        (edge_streak_frames, edge_streak_confidence) or edge_min_confidence trusts it
+        (perception/classifier/edge_streak.py); the defaults are chosen on the rig's touches.
     edge_label_weight: above 0, such an imprint read confidently keeps its label with this
         `TouchLabel.weight` (the map trusts it less; no patch readings), instead of none.
     contact_*: ContactGate parameters (see perception/contact.py).
@@ -71,8 +70,7 @@ class MaterialClassifier:
     patch_disagree_confidence: a patch naming another material than the touch's (centre)
         label needs at least this confidence, else it abstains (below min_confidence: off).
     cuda_graphs: on a GPU, replay the forward from CUDA graphs (perception/graphed.py).
-    cpu_runtime: on the CPU, `onnxruntime` (about twice as fast, perception/onnx_cpu.py) or
-        `torch` (the traced model, bit-identical to the eager one).
+    cpu_runtime: on the CPU, `onnxruntime` (perception/onnx_cpu.py) or `torch` (traced).
     """
 
     def __init__(
@@ -86,6 +84,7 @@ class MaterialClassifier:
         edge_label_weight: float = 0.0,
         edge_streak_frames: int = 0,
         edge_streak_confidence: float = 0.99,
+        edge_min_confidence: float | None = None,
         contact_threshold: float = 30.0,
         contact_min_area: float = 0.01,
         contact_blur_px: float = 3.0,
@@ -104,8 +103,7 @@ class MaterialClassifier:
     ) -> None:
         if not 0.0 <= min_confidence <= 1.0:
             raise ValueError(f"min_confidence={min_confidence} must be in [0, 1]")
-        self.class_names = list(class_names)
-        self.checkpoint = checkpoint
+        self.class_names, self.checkpoint = list(class_names), checkpoint
         self.device_name = device
         self.min_confidence = float(min_confidence)
         if not 0.0 < max_edge_share <= 1.0 or edge_px < 0:
@@ -117,7 +115,8 @@ class MaterialClassifier:
         if not 0.0 <= edge_label_weight <= 1.0:
             raise ValueError(f"edge_label_weight={edge_label_weight} must be in [0, 1]")
         self.edge_label_weight = float(edge_label_weight)
-        self.edge_streak = EdgeStreak(int(edge_streak_frames), float(edge_streak_confidence))
+        streak = (edge_streak_frames, edge_streak_confidence, edge_min_confidence)
+        self.edge_streak = EdgeStreak(*streak)
         self.gate = ContactGate(contact_threshold, contact_min_area, contact_blur_px)
         self.background_dir = background_dir
         self.first_frame_background = first_frame_background
