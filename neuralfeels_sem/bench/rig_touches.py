@@ -35,7 +35,7 @@ from neuralfeels_sem.core.materials import DEFAULT_MATERIALS
 from neuralfeels_sem.objects.library import make_object
 from neuralfeels_sem.objects.material_object import MaterialObject
 from neuralfeels_sem.objects.procedural import RECIPES
-from neuralfeels_sem.objects.random_object import EVALUATION_SEEDS_FROM, make_random_object
+from neuralfeels_sem.objects.random_object import development_seeds, make_random_object
 from neuralfeels_sem.perception.contact import ContactGate, edge_share
 from neuralfeels_sem.sim.backgrounds import finger_seed
 from neuralfeels_sem.sim.rig import SimRig
@@ -55,12 +55,7 @@ def build_object(name: str, classes: Sequence[str]) -> MaterialObject:
                 "nor a generated one (random_K)"
             )
         return make_object(name, tuple(classes))
-    seed = int(generated.group(1))
-    if seed >= EVALUATION_SEEDS_FROM:
-        raise ValueError(
-            f"object {name!r}: generated seeds from {EVALUATION_SEEDS_FROM} are the evaluation "
-            "set, never data to train or choose settings on; use a seed below it"
-        )
+    (seed,) = development_seeds(generated.group(1))
     return make_random_object(seed, tuple(classes))
 
 
@@ -177,10 +172,9 @@ def main(argv: Sequence[str] | None = None) -> None:
     parser.add_argument("--min-purity", type=float, default=0.95)
     args = parser.parse_args(argv)
     objects = list(args.objects or ([] if args.generated else sorted(RECIPES)))
-    if args.generated is not None:
-        low, _, high = args.generated.partition("-")
-        objects += [f"random_{k}" for k in range(int(low), int(high or low) + 1)]
     try:
+        if args.generated is not None:
+            objects += [f"random_{k}" for k in development_seeds(args.generated)]
         records = collect(args.root, objects, args.seed, args.frames, min_purity=args.min_purity)
     except ValueError as exc:
         parser.error(str(exc))

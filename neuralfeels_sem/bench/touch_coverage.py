@@ -21,7 +21,7 @@ import numpy as np
 
 from neuralfeels_sem.configs.sensor_sim import SimSensorConfig
 from neuralfeels_sem.core.materials import DEFAULT_MATERIALS
-from neuralfeels_sem.objects.random_object import EVALUATION_SEEDS_FROM, make_random_object
+from neuralfeels_sem.objects.random_object import development_seeds, make_random_object
 from neuralfeels_sem.sim.rig import SimRig
 from neuralfeels_sem.sim.touch_planner import TouchAdvice, TouchPlanner, TouchScoreConfig
 
@@ -74,23 +74,16 @@ def run(seeds: list[int], min_frames: int = 1) -> dict:
     return {"min_frames": min_frames, "mean_coverage": mean, "objects": rows}
 
 
-def _seeds(text: str) -> list[int]:
-    low, _, high = text.partition("-")
-    return list(range(int(low), int(high or low) + 1))
-
-
 def main() -> None:
     parser = argparse.ArgumentParser(description=__doc__.splitlines()[0])
     parser.add_argument("--seeds", default="0-9", help="object seeds, e.g. 0-59 (below 1000)")
     parser.add_argument("--min-frames", type=int, default=1)
     parser.add_argument("--out", type=Path, default=None)
     args = parser.parse_args()
-    seeds = _seeds(args.seeds)
-    if max(seeds) >= EVALUATION_SEEDS_FROM:
-        parser.error(
-            f"object seeds from {EVALUATION_SEEDS_FROM} up are the evaluation set: "
-            f"use seeds below {EVALUATION_SEEDS_FROM}"
-        )
+    try:
+        seeds = development_seeds(args.seeds)
+    except ValueError as exc:
+        parser.error(str(exc))
     result = run(seeds, args.min_frames)
     text = json.dumps(result, indent=1)
     if args.out is not None:

@@ -11,37 +11,27 @@ without a commit, or whose commit the repository lacks, is taken at its config's
 
 from __future__ import annotations
 
-import subprocess
 from functools import cache
 from pathlib import Path
 from typing import Any
 
+from neuralfeels_sem.perception.classifier.infer import SHIPPED_CHECKPOINT as CLASSIFIER
+from neuralfeels_sem.perception.tactile_depth_net.predict import SHIPPED_CHECKPOINT as DEPTH
+from neuralfeels_sem.utils.code_version import git_output
 from neuralfeels_sem.utils.paths import REPO_DIR
 
 # The config key that picks each network's weights (null: shipped) and its shipped file.
 SHIPPED: dict[str, str] = {
-    "classifier.checkpoint": "neuralfeels_sem/assets/classifier/classifier.pt",
-    "mapping.mapper.tactile_depth.checkpoint": "neuralfeels_sem/assets/tactile_depth/tactile_depth.pt",
+    "classifier.checkpoint": CLASSIFIER.relative_to(REPO_DIR).as_posix(),
+    "mapping.mapper.tactile_depth.checkpoint": DEPTH.relative_to(REPO_DIR).as_posix(),
 }
 SHORT = 7  # hex digits of a blob shown, as git abbreviates
-
-
-def _git(repo: Path, *args: str) -> str | None:
-    try:
-        done = subprocess.run(
-            ["git", "-C", str(repo), *args], capture_output=True, text=True, timeout=30
-        )
-    except (OSError, subprocess.TimeoutExpired):
-        return None
-    if done.returncode != 0:
-        return None
-    return done.stdout.strip() or None
 
 
 @cache
 def blob_at(commit: str, path: str, repo: Path = REPO_DIR) -> str | None:
     """The blob id of `path` at `commit` (None: no such commit or file here)."""
-    return _git(repo, "rev-parse", "--verify", "--quiet", f"{commit}:{path}")
+    return git_output("rev-parse", "--verify", "--quiet", f"{commit}:{path}", repo=repo) or None
 
 
 @cache
@@ -49,7 +39,7 @@ def blob_today(path: str, repo: Path = REPO_DIR) -> str | None:
     """The blob id of the file as it is in the working tree (None: absent)."""
     if not (repo / path).is_file():
         return None
-    return _git(repo, "hash-object", "--", path)
+    return git_output("hash-object", "--", path, repo=repo) or None
 
 
 def weights_drift(

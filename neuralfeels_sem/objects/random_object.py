@@ -140,6 +140,22 @@ def _generate(seed: int, family: str, pool: tuple[str, ...]) -> tuple:
     return (*arrays, record)
 
 
+def development_seeds(text: str) -> list[int]:
+    """Object seeds from "K" or "A-B" (both ends included); a ValueError when one is an
+    evaluation seed, never data to train or choose settings on."""
+    low, _, high = text.partition("-")
+    try:
+        seeds = list(range(int(low), int(high or low) + 1))
+    except ValueError:
+        raise ValueError(f"object seeds {text!r}: write K or A-B, e.g. 20-59") from None
+    if not seeds or max(seeds) >= EVALUATION_SEEDS_FROM:
+        raise ValueError(
+            f"object seeds {text!r}: seeds from {EVALUATION_SEEDS_FROM} are the evaluation set, "
+            f"never data to train or choose settings on; use seeds below {EVALUATION_SEEDS_FROM}"
+        )
+    return seeds
+
+
 def family_of(seed: int, family: str | None) -> str:
     """The forced family, or the one seed `seed` draws; ConfigError for an unknown name."""
     if family is None:

@@ -16,11 +16,12 @@ PACKAGE_DIR = Path(__file__).resolve().parents[1]
 GIT_TIMEOUT_S = 5.0
 
 
-def _git(*args: str) -> str | None:
-    """`git -C <package dir> ARGS` stdout, or None when git or the checkout is missing."""
+def git_output(*args: str, repo: Path | None = None) -> str | None:
+    """`git -C <repo> ARGS` stdout (repo: this package's checkout), or None when git, the
+    checkout or what is asked is missing."""
     try:
         result = subprocess.run(
-            ["git", "-C", str(PACKAGE_DIR), *args],
+            ["git", "-C", str(repo or PACKAGE_DIR), *args],
             capture_output=True,
             text=True,
             timeout=GIT_TIMEOUT_S,
@@ -34,9 +35,9 @@ def _git(*args: str) -> str | None:
 def code_version() -> dict:
     """{"commit": 40-hex or None, "dirty": tracked files changed since it (None if unknown)},
     as of this process's first call (tasks call it when they start)."""
-    commit = _git("rev-parse", "HEAD")
+    commit = git_output("rev-parse", "HEAD")
     if commit is None:
         return {"commit": None, "dirty": None}
     # The whole checkout: conf/ and run.py shape a run as much as the package does.
-    status = _git("status", "--porcelain", "--untracked-files=no")
+    status = git_output("status", "--porcelain", "--untracked-files=no")
     return {"commit": commit, "dirty": None if status is None else bool(status)}

@@ -122,3 +122,14 @@ def test_unseen_objects_experiment_sweeps_the_twenty_evaluation_seeds() -> None:
     assert list(parsed[0].sweep_iterator()) == list(range(1000, 1020))
     seeds = OverridesParser.create().parse_overrides([f"seed={params['seed']}"])
     assert list(seeds[0].sweep_iterator()) == [0, 1]  # two mapping seeds per object
+
+
+def test_development_seed_ranges_refuse_the_evaluation_set() -> None:
+    from neuralfeels_sem.objects.random_object import development_seeds
+
+    assert development_seeds("7") == [7]
+    assert development_seeds("20-23") == [20, 21, 22, 23]
+    with pytest.raises(ValueError, match="evaluation set"):
+        development_seeds("990-1000")
+    with pytest.raises(ValueError, match="write K or A-B"):
+        development_seeds("twenty")

@@ -41,7 +41,7 @@ def test_the_version_is_read_once_per_process(monkeypatch) -> None:
     # A multirun imports the code once: a commit made during it must not relabel its
     # later jobs, which still run the code the process started with.
     answers = iter(["a" * 40, "", "b" * 40, ""])
-    monkeypatch.setattr(cv, "_git", lambda *args: next(answers))
+    monkeypatch.setattr(cv, "git_output", lambda *args: next(answers))
     first = cv.code_version()
     assert first == {"commit": "a" * 40, "dirty": False}
     assert cv.code_version() == first
