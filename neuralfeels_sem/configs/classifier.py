@@ -31,8 +31,6 @@ class EfficientNetClassifierConfig:
     # Not null: an imprint past max_edge_share read at >= this keeps its label (full trust)
     # on its own, for a checkpoint adapted to the rig's edge imprints. null: off.
     edge_min_confidence: float | None = None
-    # The map's trust (TouchLabel.weight) in an edge label kept by edge_min_confidence alone.
-    edge_alone_weight: float = 1.0
     edge_px: int = 16
     contact_threshold: float = 30.0
     contact_min_area: float = 0.01
@@ -112,10 +110,6 @@ class EfficientNetClassifierConfig:
             raise ValueError(
                 f"classifier.edge_min_confidence={self.edge_min_confidence} must be in (0, 1] "
                 "or null (off)"
-            )
-        if not 0.0 < self.edge_alone_weight <= 1.0:
-            raise ValueError(
-                f"classifier.edge_alone_weight={self.edge_alone_weight} must be in (0, 1]"
             )
         if self.edge_px < 0:
             raise ValueError(f"classifier.edge_px={self.edge_px} must be >= 0")

@@ -45,16 +45,6 @@ def test_an_edge_reading_confident_enough_is_trusted_alone() -> None:
     assert EdgeStreak(frames=0, alone=0.9).trusted("ring", 0, 0.95)  # with the streak off too
 
 
-def test_a_reading_trusted_alone_weighs_alone_weight_and_a_streak_full() -> None:
-    streak = EdgeStreak(frames=2, confidence=0.99, alone=0.99, alone_weight=0.25)
-    assert streak.trust("index", 1, 0.995) == 0.25  # no streak yet: trusted alone
-    assert streak.trust("index", 1, 0.98) == 0.0
-    for _ in range(2):
-        streak.update("index", 1, 0.995)
-    assert streak.trust("index", 1, 0.995) == 1.0  # backed by two frames of the same finger
-    assert streak.trust("middle", 1, 0.995) == 0.25  # another finger has no streak
-
-
 def test_bad_settings_are_value_errors() -> None:
     with pytest.raises(ValueError, match="edge_streak_frames"):
         EdgeStreak(frames=-1)
@@ -68,10 +58,6 @@ def test_bad_settings_are_value_errors() -> None:
         EdgeStreak(alone=0.0)
     with pytest.raises(ValueError, match="classifier.edge_min_confidence"):
         EfficientNetClassifierConfig(edge_min_confidence=1.2)
-    with pytest.raises(ValueError, match="edge_alone_weight"):
-        EdgeStreak(alone_weight=0.0)
-    with pytest.raises(ValueError, match="classifier.edge_alone_weight"):
-        EfficientNetClassifierConfig(edge_alone_weight=1.5)
 
 
 def one_hot(top: int, confidence: float) -> np.ndarray:

@@ -25,9 +25,6 @@ class EdgeStreak:
     # An edge reading at or above this probability is trusted on its own (None: never): a
     # model adapted to the rig's own edge imprints (bench/rig_touches.py) reads them so.
     alone: float | None = None
-    # The map's trust (TouchLabel.weight) in an edge reading kept by `alone` but not backed
-    # by a streak: the labels at a small part's border can outnumber the part's own.
-    alone_weight: float = 1.0
     _runs: dict[str, tuple[int, int]] = field(default_factory=dict)  # finger -> (label, run)
 
     def __post_init__(self) -> None:
@@ -38,28 +35,20 @@ class EdgeStreak:
             raise ValueError(f"edge_streak_confidence={self.confidence} must be in (0, 1]")
         if self.alone is not None and not 0.0 < self.alone <= 1.0:
             raise ValueError(f"edge_min_confidence={self.alone} must be in (0, 1] or null (off)")
-        if not 0.0 < self.alone_weight <= 1.0:
-            raise ValueError(f"edge_alone_weight={self.alone_weight} must be in (0, 1]")
 
     def trusted(self, finger: str, top: int, confidence: float) -> bool:
-        """True when `trust` keeps this reading's label at all."""
-        return self.trust(finger, top, confidence) > 0.0
-
-    def trust(self, finger: str, top: int, confidence: float) -> float:
-        """The map's trust in this edge reading (top class, its probability): 1 when it
-        follows at least `frames` confident readings of `top` by the same finger on the
-        frames just before, `alone_weight` when it is itself at least `alone`, else 0."""
+        """True when this reading (top class, its probability) follows at least `frames`
+        confident readings of `top` by the same finger on the frames just before, or is
+        itself at least `alone`."""
+        if self.alone is not None and confidence >= self.alone:
+            return True
         label, run = self._runs.get(finger, (-1, 0))
-        if (
+        return (
             self.frames > 0
             and confidence >= self.confidence
             and label == top
             and run >= self.frames
-        ):
-            return 1.0
-        if self.alone is not None and confidence >= self.alone:
-            return self.alone_weight
-        return 0.0
+        )
 
     def update(self, finger: str, top: int | None, confidence: float) -> None:
         """Record this frame's reading of `finger` (`top` None: no contact), after `trusted`."""

@@ -53,8 +53,8 @@ class MaterialClassifier:
     max_edge_share, edge_px: a touch with more than this share of its contact pixels within
         `edge_px` of the sensor's border (an imprint cut off by the edge, typical of a tilted
         pad) gets no label either (1.0 = never), unless edge_label_weight, the edge streak
-        (edge_streak_frames, edge_streak_confidence) or edge_min_confidence (at
-        edge_alone_weight) trusts it (perception/classifier/edge_streak.py); the defaults are chosen on the rig's touches.
+        (edge_streak_frames, edge_streak_confidence) or edge_min_confidence trusts it
+        (perception/classifier/edge_streak.py); the defaults are chosen on the rig's touches.
     edge_label_weight: above 0, such an imprint read confidently keeps its label with this
         `TouchLabel.weight` (the map trusts it less; no patch readings), instead of none.
     contact_*: ContactGate parameters (see perception/contact.py).
@@ -85,7 +85,6 @@ class MaterialClassifier:
         edge_streak_frames: int = 0,
         edge_streak_confidence: float = 0.99,
         edge_min_confidence: float | None = None,
-        edge_alone_weight: float = 1.0,
         contact_threshold: float = 30.0,
         contact_min_area: float = 0.01,
         contact_blur_px: float = 3.0,
@@ -104,12 +103,20 @@ class MaterialClassifier:
     ) -> None:
         if not 0.0 <= min_confidence <= 1.0:
             raise ValueError(f"min_confidence={min_confidence} must be in [0, 1]")
-        self.class_names, self.checkpoint, self.device_name = list(class_names), checkpoint, device
+        self.class_names, self.checkpoint = list(class_names), checkpoint
+        self.device_name = device
         self.min_confidence = float(min_confidence)
-        self._set_edge_rules(max_edge_share, edge_px, edge_label_weight)
-        self.edge_streak = EdgeStreak(
-            edge_streak_frames, edge_streak_confidence, edge_min_confidence, edge_alone_weight
-        )
+        if not 0.0 < max_edge_share <= 1.0 or edge_px < 0:
+            raise ValueError(
+                f"max_edge_share={max_edge_share} must be in (0, 1] and edge_px={edge_px} >= 0"
+            )
+        self.max_edge_share = float(max_edge_share)
+        self.edge_px = int(edge_px)
+        if not 0.0 <= edge_label_weight <= 1.0:
+            raise ValueError(f"edge_label_weight={edge_label_weight} must be in [0, 1]")
+        self.edge_label_weight = float(edge_label_weight)
+        streak = (edge_streak_frames, edge_streak_confidence, edge_min_confidence)
+        self.edge_streak = EdgeStreak(*streak)
         self.gate = ContactGate(contact_threshold, contact_min_area, contact_blur_px)
         self.background_dir = background_dir
         self.first_frame_background = first_frame_background
@@ -126,18 +133,6 @@ class MaterialClassifier:
         self._model: torch.nn.Module | None = None
         self._ckpt: ClassifierCheckpoint | None = None
         self._device: torch.device | None = None
-
-    def _set_edge_rules(
-        self, max_edge_share: float, edge_px: int, edge_label_weight: float
-    ) -> None:
-        if not 0.0 < max_edge_share <= 1.0 or edge_px < 0:
-            raise ValueError(
-                f"max_edge_share={max_edge_share} must be in (0, 1] and edge_px={edge_px} >= 0"
-            )
-        if not 0.0 <= edge_label_weight <= 1.0:
-            raise ValueError(f"edge_label_weight={edge_label_weight} must be in [0, 1]")
-        self.max_edge_share, self.edge_px = float(max_edge_share), int(edge_px)
-        self.edge_label_weight = float(edge_label_weight)
 
     def _set_patch_reading(
         self,
@@ -318,18 +313,22 @@ class MaterialClassifier:
 
     def _label(self, label: TouchLabel, probs: np.ndarray, at_edge: bool) -> None:
         """Set a touch's label from its class probabilities: none below min_confidence,
-        none for an imprint along the border unless the edge streak (a finger's streak of
-        confident frames naming this material, or one reading at edge_min_confidence:
-        EdgeStreak.trust) or edge_label_weight trusts it some; TouchLabel.weight is that trust."""
+        none for an imprint along the border unless edge_label_weight trusts it some or the
+        finger's streak of confident frames naming this material backs it (EdgeStreak)."""
         top = int(probs.argmax())
-        label.probs, label.confidence, label.at_edge = probs, float(probs[top]), at_edge
-        trust = self.edge_streak.trust(label.finger, top, label.confidence) if at_edge else 1.0
-        trust = trust or self.edge_label_weight
-        if probs[top] < self.min_confidence or not trust:
+        label.probs = probs
+        label.confidence = float(probs[top])
+        label.at_edge = at_edge
+        unbacked_edge = at_edge and not self.edge_streak.trusted(
+            label.finger, top, label.confidence
+        )
+        if probs[top] < self.min_confidence or (unbacked_edge and not self.edge_label_weight):
             label.low_confidence = True
             label.label = NO_LABEL
             return
-        label.label, label.weight = top, trust
+        label.label = top
+        if unbacked_edge:
+            label.weight = self.edge_label_weight
 
     def _read_patches(
         self, readings: Sequence[TactileReading], masks: list[np.ndarray], labels: list[TouchLabel]
