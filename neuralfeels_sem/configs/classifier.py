@@ -29,8 +29,9 @@ class EfficientNetClassifierConfig:
     edge_streak_frames: int = 2
     edge_streak_confidence: float = 0.99
     # Not null: an imprint past max_edge_share read at >= this keeps its label (full trust)
-    # on its own, for a checkpoint adapted to the rig's edge imprints. null: off.
-    edge_min_confidence: float | None = None
+    # on its own. The shipped model is adapted to the rig's edge imprints and reads them
+    # right at this confidence nearly always (docs/classifier.md). null: off.
+    edge_min_confidence: float | None = 0.99
     edge_px: int = 16
     contact_threshold: float = 30.0
     contact_min_area: float = 0.01
