@@ -9,7 +9,10 @@ backgrounds and frames) and writes every frame in contact (the classifier's cont
 gate) whose ground-truth material is at least `min_purity` one class, in the ImageFolder layout
 `<root>/<sensor>/<material>/<object>_<seed>_<frame>.png` that `task=eval_classifier`
 reads, with `_backgrounds/<sensor>.png` and `touches.json` (every gated touch: object,
-frame, finger, majority class, purity, contact pixels, edge share).
+frame, finger, majority class, purity, contact pixels, edge share, whether it was written).
+`--keep-every E O` thins the set for training: an edge imprint (edge share above the
+classifier's default max_edge_share) is written on every E-th frame, any other touch on
+every O-th (the rig's frames follow each other closely, so neighbours are near copies).
 
     python -m neuralfeels_sem.bench.rig_touches data/tactile/rig_seed0 --seed 0
     python run.py task=eval_classifier dataset.root=data/tactile/rig_seed0
@@ -42,6 +45,7 @@ from neuralfeels_sem.sim.rig import SimRig
 
 CLASSES = tuple(DEFAULT_MATERIALS)
 EDGE_PX = 16  # the classifier's default edge band
+MAX_EDGE_SHARE = 0.5  # the classifier's default: above it a touch is an edge imprint
 GENERATED = re.compile(r"random_(\d+)")  # object=random object.seed=K, named random_K
 
 
@@ -85,8 +89,10 @@ def _frame_touches(
     gate: ContactGate,
     classes: Sequence[str],
     min_purity: float,
+    keep_every: tuple[int, int] = (1, 1),
 ) -> list[dict]:
-    """Render frame i on every DIGIT; record each gated touch, write the pure ones."""
+    """Render frame i on every DIGIT; record each gated touch, write the pure ones on
+    the frames `keep_every` (edge imprints, other touches) keeps."""
     records = []
     for finger, renderer in renderers.items():
         out = renderer.render(state.world_T_object, state.world_T_sensor[finger])
@@ -97,6 +103,9 @@ def _frame_touches(
         if majority is None:
             continue
         label, purity = majority
+        share = edge_share(mask, EDGE_PX)
+        stride = keep_every[0] if share > MAX_EDGE_SHARE else keep_every[1]
+        write = purity >= min_purity and i % stride == 0
         records.append(
             {
                 "object": name,
@@ -105,11 +114,11 @@ def _frame_touches(
                 "material": classes[label],
                 "purity": round(purity, 4),
                 "contact_px": int(out.contact_mask.sum()),
-                "edge_share": round(edge_share(mask, EDGE_PX), 4),
-                "written": purity >= min_purity,
+                "edge_share": round(share, 4),
+                "written": write,
             }
         )
-        if purity >= min_purity:
+        if write:
             path = root / finger / classes[label] / f"{name}_{seed}_{i:04d}.png"
             _write_rgb(path, out.image)
     return records
@@ -123,8 +132,11 @@ def collect(
     fps: float = 10.0,
     min_purity: float = 0.95,
     classes: Sequence[str] = CLASSES,
+    keep_every: tuple[int, int] = (1, 1),
 ) -> list[dict]:
     """Write the rig's labelled touches under `root`; returns one record per gated touch."""
+    if min(keep_every) < 1:
+        raise ValueError(f"--keep-every {keep_every[0]} {keep_every[1]}: both must be >= 1")
     from neuralfeels_sem.sim.tactile_renderer import DigitRenderer
 
     root = Path(root)
@@ -143,7 +155,7 @@ def collect(
             for i in range(frames):
                 state = rig.state_at(i / fps)
                 records += _frame_touches(
-                    root, name, seed, i, state, renderers, gate, classes, min_purity
+                    root, name, seed, i, state, renderers, gate, classes, min_purity, keep_every
                 )
                 progress.update(1)
         finally:
@@ -170,12 +182,23 @@ def main(argv: Sequence[str] | None = None) -> None:
     parser.add_argument("--seed", type=int, default=0)
     parser.add_argument("--frames", type=int, default=100, help="frames per object (10 fps)")
     parser.add_argument("--min-purity", type=float, default=0.95)
+    parser.add_argument(
+        "--keep-every",
+        nargs=2,
+        type=int,
+        default=(1, 1),
+        metavar=("EDGE", "OTHER"),
+        help="write edge imprints on every EDGE-th frame and other touches on every OTHER-th",
+    )
     args = parser.parse_args(argv)
     objects = list(args.objects or ([] if args.generated else sorted(RECIPES)))
     try:
         if args.generated is not None:
             objects += [f"random_{k}" for k in development_seeds(args.generated)]
-        records = collect(args.root, objects, args.seed, args.frames, min_purity=args.min_purity)
+        records = collect(
+            args.root, objects, args.seed, args.frames, min_purity=args.min_purity,
+            keep_every=tuple(args.keep_every),
+        )  # fmt: skip
     except ValueError as exc:
         parser.error(str(exc))
     shares = np.array([r["edge_share"] for r in records]) if records else np.zeros(1)

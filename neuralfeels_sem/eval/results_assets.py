@@ -127,12 +127,19 @@ def classifier_training_lines(report: dict, manifest: dict | None) -> list[str]:
     """What the checkpoint was trained on and how its last round ran."""
     kinds = get(manifest or {}, "dataset.press_counts") or {}
     presses = ", ".join(f"{kind} {n}" for kind, n in kinds.items())
+    mix = get(report, "training.mix")
+    mixed = (
+        f"; each epoch mixed with {text(report, 'training.mix.sim_per_epoch')} of "
+        f"{text(report, 'training.mix.sim_images')} simulated presses from another collection"
+        if isinstance(mix, dict)
+        else ""
+    )
     return [
         f"Data set: {text(report, 'data.images')} simulated images"
         + (f" (presses: {presses})" if presses else "")
         + f", split {text(report, 'counts.train')} / {text(report, 'counts.val')} / "
-        f"{text(report, 'counts.test')} (train / validation / test). Last training round: "
-        f"{text(report, 'training.epochs_run')} epochs, lr {text(report, 'training.lr')} "
+        f"{text(report, 'counts.test')} (train / validation / test){mixed}. Last training "
+        f"round: {text(report, 'training.epochs_run')} epochs, lr {text(report, 'training.lr')} "
         f"({text(report, 'training.lr_schedule')}), batch {text(report, 'training.batch_size')}; "
         f"kept epoch {text(report, 'training.best_epoch')}, the best on validation.",
         "",
@@ -182,9 +189,9 @@ def held_out_lines(report: dict, path: Path) -> list[str]:
     ]
     root = get(report, "data.root")
     head = [
-        f"### Material classifier on a fresh collection (`{display_path(path)}`)",
+        f"### Material classifier on a held-out collection (`{display_path(path)}`)",
         "",
-        "Simulated presses collected apart from the training data"
+        "Simulated presses no training round used"
         + (f" (`{display_path(Path(str(root)))}`)" if root else "")
         + ", judged by the shipped checkpoint. The bend radius is the surface's at the "
         "press: one over its largest principal curvature over the gel's footprint.",

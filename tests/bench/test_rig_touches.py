@@ -39,6 +39,14 @@ def test_rig_touches_are_written_with_their_ground_truth_material(tmp_path: Path
     a = cv2.imread(str(files[0]))
     b = cv2.imread(str(tmp_path / "again" / files[0].relative_to(tmp_path)))
     assert np.array_equal(a, b)
+    # Thinned for training: edge imprints on every 2nd frame, other touches on every 3rd.
+    thin = collect(tmp_path / "thin", ["patched_toy"], seed=0, frames=8, keep_every=(2, 3))
+    for full, kept in zip(records, thin, strict=True):
+        stride = 2 if full["edge_share"] > 0.5 else 3
+        assert kept == {**full, "written": full["written"] and full["frame"] % stride == 0}
+    assert len(list((tmp_path / "thin").glob("[imrt]*/*/*.png"))) == sum(r["written"] for r in thin)
+    with pytest.raises(ValueError, match="keep-every"):
+        collect(tmp_path / "bad", ["patched_toy"], frames=1, keep_every=(0, 1))
 
 
 def test_unknown_object_is_a_one_line_error(tmp_path: Path) -> None:

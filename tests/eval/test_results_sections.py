@@ -343,7 +343,12 @@ def test_shipped_classifier_training_gates_and_confusion_come_from_its_files(
     # Without a manifest beside the report the kinds of press are left out.
     (tmp_path / "manifest.json").unlink()
     text = "\n".join(assets_section(tmp_path / "depth.json", tmp_path / "report.json", ()))
-    assert "40 simulated images, split 24 / 8 / 8" in text
+    assert "40 simulated images, split 24 / 8 / 8 (train / validation / test). Last" in text
+    # A round that mixed another collection's presses into every epoch says so.
+    report["training"]["mix"] = {"sim_per_epoch": 24, "sim_images": 100}
+    (tmp_path / "report.json").write_text(json.dumps(report))
+    text = "\n".join(assets_section(tmp_path / "depth.json", tmp_path / "report.json", ()))
+    assert "(train / validation / test); each epoch mixed with 24 of 100 simulated" in text
 
 
 def test_uncertainty_rows_per_source_and_object(tmp_path: Path, default_sweep: Path) -> None:

@@ -38,3 +38,14 @@ python run.py task=eval_classifier dataset.root=data/tactile/sim_v6_test
 # held_out_fresh_mixed_781.json: a fresh collection with sim_v6's recipe (per-image kind of press and surface curvature in its manifest), judged by the shipped checkpoint
 python run.py task=collect_tactile task.root=data/tactile/fresh_mixed_781 task.samples_per_class_per_sensor=100 task.edge_press_fraction=0.4 task.feature_press_fraction=0.25 seed=781
 python run.py task=eval_classifier dataset.root=data/tactile/fresh_mixed_781
+# collect_stage8: the rig's own touches of generated development objects 20-59 at rig seed 3 (300 frames each),
+# edge imprints (edge share > 0.5) kept on every 4th frame and other touches on every 10th (4530 images; as run, the
+# full set was written to data/tactile/rig_gen20_59_s3 and thinned by this rule afterwards), and simulated presses to mix in
+python -m neuralfeels_sem.bench.rig_touches data/tactile/rig_gen_sub --seed 3 --generated 20-59 --frames 300 --keep-every 4 10
+python run.py task=collect_tactile dataset.root=data/tactile/sim_mix301 task.samples_per_class_per_sensor=150 task.edge_press_fraction=0.4 task.feature_press_fraction=0.25 seed=301
+# stage8 (5 cosine epochs from stage 7's classifier.pt, the shipped one then; each epoch draws as many simulated presses as rig touches; wrote classifier.pt, report.json on the rig touches' test split)
+OMP_NUM_THREADS=2 python run.py task=train_classifier dataset.root=data/tactile/rig_gen_sub dataset.sim_root=data/tactile/sim_mix301 task.init_from=shipped task.real_ratio=0.5 task.lr=1e-4 task.lr_schedule=cosine task.max_epochs=5 task.patience=5 task.export_fp16=true classifier.device=cpu seed=0 hydra.run.dir=RUN8
+# held_out_sim_v6_test.json: stage 7's test split (recollected with stage 7's command above, the same images), copied with its manifest entries into a folder
+python run.py task=eval_classifier dataset.root=data/tactile/sim_v6_test
+# held_out_fresh_mixed_781.json: the fresh collection above (seed 781), judged by stage 8's checkpoint
+python run.py task=eval_classifier dataset.root=data/tactile/fresh_mixed_781
