@@ -111,13 +111,15 @@ def compared(key: str, flat: dict[str, Any] | None = None) -> bool:
 # every source before); the default became 200. mapping.mapper.label_vote_steady_frames
 # came with 0 (no press backs itself); the default became 3. sensor.planner.weigh_by_contact
 # came with true: the active runs before it ranked by score alone. The networks' cpu_runtime
-# came with onnxruntime: runs before it ran them in torch.
+# came with onnxruntime: runs before it ran them in torch. classifier.edge_min_confidence
+# came with null (off); the default became 0.99.
 ADDED_SINCE: dict[str, tuple[str, Any]] = {
     "classifier.patch_probe": ("classifier.max_patches", 0),
     "mapping.tracker.max_points_per_finger": ("mapping.tracker.max_points_per_source", 1000),
     "mapping.mapper.label_vote_steady_frames": ("mapping.mapper.label_vote_press_gap", 0),
     "sensor.planner.weigh_by_contact": ("sensor.planner.candidates", False),
     "classifier.cpu_runtime": ("classifier.cuda_graphs", "torch"),
+    "classifier.edge_min_confidence": ("classifier.min_confidence", None),
     "mapping.mapper.tactile_depth.cpu_runtime": (
         "mapping.mapper.tactile_depth.min_contact_px",
         "torch",

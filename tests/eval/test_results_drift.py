@@ -196,3 +196,13 @@ def test_runs_before_the_cpu_runtime_setting_read_as_run_in_torch() -> None:
     depth_now = {"min_contact_px": 150, "cpu_runtime": "onnxruntime"}
     now = {"classifier": classifier_now, "mapping": {"mapper": {"tactile_depth": depth_now}}}
     assert drift(now, {}, today) == {}
+
+
+def test_runs_before_the_edge_min_confidence_setting_read_as_run_without_it() -> None:
+    """Edge readings were never trusted alone until edge_min_confidence came (null, off);
+    its default became 0.99 with the classifier adapted to the rig's edge imprints."""
+    today = {"classifier.min_confidence": 0.8, "classifier.edge_min_confidence": 0.99}
+    before = {"classifier": {"min_confidence": 0.8}}
+    assert drift(before, {}, today) == {"classifier.edge_min_confidence": (None, 0.99)}
+    now = {"classifier": {"min_confidence": 0.8, "edge_min_confidence": 0.99}}
+    assert drift(now, {}, today) == {}
