@@ -32,6 +32,7 @@ import cv2
 import numpy as np
 from tqdm import tqdm
 
+from neuralfeels_sem.configs.classifier import EfficientNetClassifierConfig
 from neuralfeels_sem.configs.sensor_sim import SimSensorConfig
 from neuralfeels_sem.core.hand import FINGERS
 from neuralfeels_sem.core.materials import DEFAULT_MATERIALS
@@ -44,8 +45,9 @@ from neuralfeels_sem.sim.backgrounds import finger_seed
 from neuralfeels_sem.sim.rig import SimRig
 
 CLASSES = tuple(DEFAULT_MATERIALS)
-EDGE_PX = 16  # the classifier's default edge band
-MAX_EDGE_SHARE = 0.5  # the classifier's default: above it a touch is an edge imprint
+# The classifier's default edge band, and the share of it above which a touch is an edge imprint.
+EDGE_PX = EfficientNetClassifierConfig.edge_px
+MAX_EDGE_SHARE = EfficientNetClassifierConfig.max_edge_share
 GENERATED = re.compile(r"random_(\d+)")  # object=random object.seed=K, named random_K
 
 
