@@ -13,6 +13,12 @@ frame, finger, majority class, purity, contact pixels, edge share, whether it wa
 `--keep-every E O` thins the set for training: an edge imprint (edge share above the
 classifier's default max_edge_share) is written on every E-th frame, any other touch on
 every O-th (the rig's frames follow each other closely, so neighbours are near copies).
+`--mixed-patches P` also writes, on every P-th frame, what the classifier's patch reading
+sees of an imprint that straddles materials (not an edge imprint; purity below
+`min_purity`): a crop at each of its patch centres (perception/classifier/patches.py, the
+classifier's default spacing), named `<object>_<seed>_<frame>_p<k>.png` and labelled with
+the material within half the patch spacing of the centre where that is `min_purity` one
+class. Pure touches alone teach the model nothing about where a border lies under a press.
 
     python -m neuralfeels_sem.bench.rig_touches data/tactile/rig_seed0 --seed 0
     python run.py task=eval_classifier dataset.root=data/tactile/rig_seed0
@@ -26,6 +32,7 @@ import argparse
 import json
 import re
 from collections.abc import Sequence
+from dataclasses import dataclass
 from pathlib import Path
 
 import cv2
@@ -40,6 +47,7 @@ from neuralfeels_sem.objects.library import make_object
 from neuralfeels_sem.objects.material_object import MaterialObject
 from neuralfeels_sem.objects.procedural import RECIPES
 from neuralfeels_sem.objects.random_object import development_seeds, make_random_object
+from neuralfeels_sem.perception.classifier.patches import crop_around, patch_centres
 from neuralfeels_sem.perception.contact import ContactGate, edge_share
 from neuralfeels_sem.sim.backgrounds import finger_seed
 from neuralfeels_sem.sim.rig import SimRig
@@ -49,6 +57,31 @@ CLASSES = tuple(DEFAULT_MATERIALS)
 EDGE_PX = EfficientNetClassifierConfig.edge_px
 MAX_EDGE_SHARE = EfficientNetClassifierConfig.max_edge_share
 GENERATED = re.compile(r"random_(\d+)")  # object=random object.seed=K, named random_K
+# Patch crops as the classifier reads them: its default spacing, and the shipped
+# checkpoint's crop side (its meta "crop_px"; a test keeps the two equal).
+PATCH_SPACING_PX = EfficientNetClassifierConfig.patch_spacing_px
+MAX_PATCHES = EfficientNetClassifierConfig.max_patches
+CROP_PX = 112
+MIN_PATCH_CONTACT_PX = 200  # labelled contact pixels a patch's centre disc needs
+
+
+@dataclass(frozen=True)
+class WriteRule:
+    """Which touches are written: pure ones (`min_purity`) on the frames `keep_every`
+    (edge imprints, other touches) keeps; mixed ones as patch crops every `patch_every`-th
+    frame (0: never)."""
+
+    min_purity: float = 0.95
+    keep_every: tuple[int, int] = (1, 1)
+    patch_every: int = 0
+
+    def __post_init__(self) -> None:
+        if min(self.keep_every) < 1:
+            raise ValueError(
+                f"--keep-every {self.keep_every[0]} {self.keep_every[1]}: both must be >= 1"
+            )
+        if self.patch_every < 0:
+            raise ValueError(f"--mixed-patches {self.patch_every} must be >= 0 (0: off)")
 
 
 def build_object(name: str, classes: Sequence[str]) -> MaterialObject:
@@ -81,6 +114,23 @@ def _majority(out, num_classes: int) -> tuple[int, float] | None:
     return label, float(counts[label] / labels.size)
 
 
+def _patch_crops(out, mask: np.ndarray, rule: WriteRule) -> list[tuple[int, np.ndarray]]:
+    """(label, crop) at each patch centre of a mixed imprint whose centre disc (half the
+    patch spacing) is `min_purity` one ground-truth material; other centres are skipped."""
+    truth = np.where(out.contact_mask, out.material, -1)
+    rows, cols = np.nonzero(truth >= 0)
+    materials = truth[rows, cols]
+    crops = []
+    for centre in patch_centres(mask, PATCH_SPACING_PX, MAX_PATCHES):
+        near = (rows - centre[0]) ** 2 + (cols - centre[1]) ** 2 <= (PATCH_SPACING_PX / 2) ** 2
+        if near.sum() < MIN_PATCH_CONTACT_PX:
+            continue
+        counts = np.bincount(materials[near])
+        if counts.max() >= rule.min_purity * near.sum():
+            crops.append((int(counts.argmax()), crop_around(out.image, centre, CROP_PX)))
+    return crops
+
+
 def _frame_touches(
     root: Path,
     name: str,
@@ -90,11 +140,10 @@ def _frame_touches(
     renderers: dict,
     gate: ContactGate,
     classes: Sequence[str],
-    min_purity: float,
-    keep_every: tuple[int, int] = (1, 1),
+    rule: WriteRule,
 ) -> list[dict]:
     """Render frame i on every DIGIT; record each gated touch, write the pure ones on
-    the frames `keep_every` (edge imprints, other touches) keeps."""
+    the frames the rule keeps and the mixed ones' patch crops where it asks for them."""
     records = []
     for finger, renderer in renderers.items():
         out = renderer.render(state.world_T_object, state.world_T_sensor[finger])
@@ -106,8 +155,15 @@ def _frame_touches(
             continue
         label, purity = majority
         share = edge_share(mask, EDGE_PX)
-        stride = keep_every[0] if share > MAX_EDGE_SHARE else keep_every[1]
-        write = purity >= min_purity and i % stride == 0
+        at_edge = share > MAX_EDGE_SHARE
+        stride = rule.keep_every[0] if at_edge else rule.keep_every[1]
+        write = purity >= rule.min_purity and i % stride == 0
+        stem = f"{name}_{seed}_{i:04d}"
+        patches = []
+        if rule.patch_every and not at_edge and purity < rule.min_purity:
+            patches = _patch_crops(out, mask, rule) if i % rule.patch_every == 0 else []
+        for k, (patch_label, crop) in enumerate(patches):
+            _write_rgb(root / finger / classes[patch_label] / f"{stem}_p{k}.png", crop)
         records.append(
             {
                 "object": name,
@@ -118,11 +174,11 @@ def _frame_touches(
                 "contact_px": int(out.contact_mask.sum()),
                 "edge_share": round(share, 4),
                 "written": write,
+                "patches": len(patches),
             }
         )
         if write:
-            path = root / finger / classes[label] / f"{name}_{seed}_{i:04d}.png"
-            _write_rgb(path, out.image)
+            _write_rgb(root / finger / classes[label] / f"{stem}.png", out.image)
     return records
 
 
@@ -132,13 +188,10 @@ def collect(
     seed: int = 0,
     frames: int = 100,
     fps: float = 10.0,
-    min_purity: float = 0.95,
     classes: Sequence[str] = CLASSES,
-    keep_every: tuple[int, int] = (1, 1),
+    rule: WriteRule = WriteRule(),
 ) -> list[dict]:
     """Write the rig's labelled touches under `root`; returns one record per gated touch."""
-    if min(keep_every) < 1:
-        raise ValueError(f"--keep-every {keep_every[0]} {keep_every[1]}: both must be >= 1")
     from neuralfeels_sem.sim.tactile_renderer import DigitRenderer
 
     root = Path(root)
@@ -157,7 +210,7 @@ def collect(
             for i in range(frames):
                 state = rig.state_at(i / fps)
                 records += _frame_touches(
-                    root, name, seed, i, state, renderers, gate, classes, min_purity, keep_every
+                    root, name, seed, i, state, renderers, gate, classes, rule
                 )
                 progress.update(1)
         finally:
@@ -192,21 +245,28 @@ def main(argv: Sequence[str] | None = None) -> None:
         metavar=("EDGE", "OTHER"),
         help="write edge imprints on every EDGE-th frame and other touches on every OTHER-th",
     )
+    parser.add_argument(
+        "--mixed-patches",
+        type=int,
+        default=0,
+        metavar="P",
+        help="write patch crops of imprints straddling materials on every P-th frame (0: off)",
+    )
     args = parser.parse_args(argv)
     objects = list(args.objects or ([] if args.generated else sorted(RECIPES)))
     try:
         if args.generated is not None:
             objects += [f"random_{k}" for k in development_seeds(args.generated)]
-        records = collect(
-            args.root, objects, args.seed, args.frames, min_purity=args.min_purity,
-            keep_every=tuple(args.keep_every),
-        )  # fmt: skip
+        rule = WriteRule(args.min_purity, tuple(args.keep_every), args.mixed_patches)
+        records = collect(args.root, objects, args.seed, args.frames, rule=rule)
     except ValueError as exc:
         parser.error(str(exc))
     shares = np.array([r["edge_share"] for r in records]) if records else np.zeros(1)
     written = sum(r["written"] for r in records)
+    patches = sum(r["patches"] for r in records)
     print(
-        f"{len(records)} touches in contact, {written} written to {args.root}; "
+        f"{len(records)} touches in contact, {written} written to {args.root} "
+        f"(and {patches} patch crops); "
         f"edge share median {np.median(shares):.2f}, > 0.35 in {(shares > 0.35).mean():.0%}"
     )
 
