@@ -191,9 +191,10 @@ def held_out_lines(report: dict, path: Path) -> list[str]:
     head = [
         f"### Material classifier on a held-out collection (`{display_path(path)}`)",
         "",
-        "Simulated presses no training round used"
+        "Simulated images no training round used"
         + (f" (`{display_path(Path(str(root)))}`)" if root else "")
-        + ", judged by the shipped checkpoint. The bend radius is the surface's at the "
+        + ", judged by the shipped checkpoint: presses of `task=collect_tactile`, or the "
+        "rig's own touches (`bench.rig_touches`). The bend radius is the surface's at the "
         "press: one over its largest principal curvature over the gel's footprint.",
         "",
     ]
