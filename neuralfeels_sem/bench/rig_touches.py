@@ -9,7 +9,8 @@ backgrounds and frames) and writes every frame in contact (the classifier's cont
 gate) whose ground-truth material is at least `min_purity` one class, in the ImageFolder layout
 `<root>/<sensor>/<material>/<object>_<seed>_<frame>.png` that `task=eval_classifier`
 reads, with `_backgrounds/<sensor>.png` and `touches.json` (every gated touch: object,
-frame, finger, majority class, purity, contact pixels, edge share, whether it was written).
+frame, finger, majority class, purity, contact pixels, edge share, whether it was written,
+how many patch crops were).
 `--keep-every E O` thins the set for training: an edge imprint (edge share above the
 classifier's default max_edge_share) is written on every E-th frame, any other touch on
 every O-th (the rig's frames follow each other closely, so neighbours are near copies).
@@ -76,6 +77,8 @@ class WriteRule:
     patch_every: int = 0
 
     def __post_init__(self) -> None:
+        if not 0.5 <= self.min_purity <= 1.0:
+            raise ValueError(f"--min-purity {self.min_purity} must be in [0.5, 1]")
         if min(self.keep_every) < 1:
             raise ValueError(
                 f"--keep-every {self.keep_every[0]} {self.keep_every[1]}: both must be >= 1"
@@ -159,9 +162,9 @@ def _frame_touches(
         stride = rule.keep_every[0] if at_edge else rule.keep_every[1]
         write = purity >= rule.min_purity and i % stride == 0
         stem = f"{name}_{seed}_{i:04d}"
-        patches = []
-        if rule.patch_every and not at_edge and purity < rule.min_purity:
-            patches = _patch_crops(out, mask, rule) if i % rule.patch_every == 0 else []
+        mixed = not at_edge and purity < rule.min_purity
+        patch_frame = rule.patch_every > 0 and i % rule.patch_every == 0
+        patches = _patch_crops(out, mask, rule) if mixed and patch_frame else []
         for k, (patch_label, crop) in enumerate(patches):
             _write_rgb(root / finger / classes[patch_label] / f"{stem}_p{k}.png", crop)
         records.append(

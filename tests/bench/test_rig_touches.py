@@ -104,6 +104,8 @@ def test_patch_crops_are_labelled_with_the_material_under_their_centre() -> None
     assert straddling.any() and len(crops) <= len(centres) - straddling.sum()
     with pytest.raises(ValueError, match="mixed-patches"):
         WriteRule(patch_every=-1)
+    with pytest.raises(ValueError, match="min-purity"):
+        WriteRule(min_purity=0.3)
 
 
 def test_mixed_imprints_are_written_as_patch_crops_only_when_asked(tmp_path: Path) -> None:
