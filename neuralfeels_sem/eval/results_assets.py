@@ -129,8 +129,8 @@ def classifier_training_lines(report: dict, manifest: dict | None) -> list[str]:
     presses = ", ".join(f"{kind} {n}" for kind, n in kinds.items())
     mix = get(report, "training.mix")
     mixed = (
-        f"; each epoch mixed with {text(report, 'training.mix.sim_per_epoch')} of "
-        f"{text(report, 'training.mix.sim_images')} simulated presses from another collection"
+        f"; each epoch mixed with {text(report, 'training.mix.sim_per_epoch')} draws from "
+        f"{text(report, 'training.mix.sim_images')} simulated presses of another collection"
         if isinstance(mix, dict)
         else ""
     )

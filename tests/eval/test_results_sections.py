@@ -348,7 +348,7 @@ def test_shipped_classifier_training_gates_and_confusion_come_from_its_files(
     report["training"]["mix"] = {"sim_per_epoch": 24, "sim_images": 100}
     (tmp_path / "report.json").write_text(json.dumps(report))
     text = "\n".join(assets_section(tmp_path / "depth.json", tmp_path / "report.json", ()))
-    assert "(train / validation / test); each epoch mixed with 24 of 100 simulated" in text
+    assert "(train / validation / test); each epoch mixed with 24 draws from 100 simulated" in text
 
 
 def test_uncertainty_rows_per_source_and_object(tmp_path: Path, default_sweep: Path) -> None:
