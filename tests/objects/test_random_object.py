@@ -124,6 +124,28 @@ def test_unseen_objects_experiment_sweeps_the_twenty_evaluation_seeds() -> None:
     assert list(seeds[0].sweep_iterator()) == [0, 1]  # two mapping seeds per object
 
 
+def test_development_objects_experiment_mirrors_the_evaluation_set_below_it() -> None:
+    """experiment=development_objects: as many objects and mapping seeds as the evaluation
+    set, every object a development seed (the same range check that guards training data)."""
+    from hydra.core.override_parser.overrides_parser import OverridesParser
+
+    from neuralfeels_sem.objects.random_object import EVALUATION_SEEDS_FROM, development_seeds
+
+    def swept(cfg, key: str) -> list[int]:
+        value = cfg.hydra.sweeper.params[key]
+        parsed = OverridesParser.create().parse_overrides([f"{key}={value}"])
+        return list(parsed[0].sweep_iterator())
+
+    dev = compose_config(["experiment=development_objects"], return_hydra_config=True)
+    held = compose_config(["experiment=unseen_objects"], return_hydra_config=True)
+    assert dev.object._target_ == held.object._target_ and dev.task.name == "map"
+    objects = swept(dev, "object.seed")
+    assert objects == development_seeds(f"{objects[0]}-{objects[-1]}")
+    assert max(objects) < EVALUATION_SEEDS_FROM
+    assert len(objects) == len(swept(held, "object.seed"))
+    assert swept(dev, "seed") == swept(held, "seed")
+
+
 def test_development_seed_ranges_refuse_the_evaluation_set() -> None:
     from neuralfeels_sem.objects.random_object import development_seeds
 
