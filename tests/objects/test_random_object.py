@@ -112,29 +112,26 @@ def test_config_composes_and_instantiates_with_a_material_subset() -> None:
         validate_config(compose_config(["object=random", "object.seed=-1"]))
 
 
-def test_unseen_objects_experiment_sweeps_the_twenty_evaluation_seeds() -> None:
+def swept(cfg, key: str) -> list:
+    """The values a composed experiment's sweeper runs `key` over."""
     from hydra.core.override_parser.overrides_parser import OverridesParser
 
+    value = cfg.hydra.sweeper.params[key]
+    parsed = OverridesParser.create().parse_overrides([f"{key}={value}"])
+    return list(parsed[0].sweep_iterator())
+
+
+def test_unseen_objects_experiment_sweeps_the_twenty_evaluation_seeds() -> None:
     cfg = compose_config(["experiment=unseen_objects"], return_hydra_config=True)
     assert cfg.object._target_.endswith("make_random_object") and cfg.task.name == "map"
-    params = cfg.hydra.sweeper.params
-    parsed = OverridesParser.create().parse_overrides([f"object.seed={params['object.seed']}"])
-    assert list(parsed[0].sweep_iterator()) == list(range(1000, 1020))
-    seeds = OverridesParser.create().parse_overrides([f"seed={params['seed']}"])
-    assert list(seeds[0].sweep_iterator()) == [0, 1]  # two mapping seeds per object
+    assert swept(cfg, "object.seed") == list(range(1000, 1020))
+    assert swept(cfg, "seed") == [0, 1]  # two mapping seeds per object
 
 
 def test_development_objects_experiment_mirrors_the_evaluation_set_below_it() -> None:
     """experiment=development_objects: as many objects and mapping seeds as the evaluation
     set, every object a development seed (the same range check that guards training data)."""
-    from hydra.core.override_parser.overrides_parser import OverridesParser
-
     from neuralfeels_sem.objects.random_object import EVALUATION_SEEDS_FROM, development_seeds
-
-    def swept(cfg, key: str) -> list[int]:
-        value = cfg.hydra.sweeper.params[key]
-        parsed = OverridesParser.create().parse_overrides([f"{key}={value}"])
-        return list(parsed[0].sweep_iterator())
 
     dev = compose_config(["experiment=development_objects"], return_hydra_config=True)
     held = compose_config(["experiment=unseen_objects"], return_hydra_config=True)

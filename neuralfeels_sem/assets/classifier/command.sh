@@ -54,7 +54,9 @@ python run.py task=eval_classifier dataset.root=data/tactile/fresh_mixed_781
 python -m neuralfeels_sem.bench.rig_touches data/tactile/rig_gen_mixp --seed 3 --generated 20-59 --frames 300 --keep-every 4 10 --mixed-patches 2
 # stage9 (4 cosine epochs from stage 8's classifier.pt, the shipped one then; rig images mixed 1:1 with sim_mix301; wrote classifier.pt, report.json on the rig images' test split)
 OMP_NUM_THREADS=2 python run.py task=train_classifier dataset.root=data/tactile/rig_gen_mixp dataset.sim_root=data/tactile/sim_mix301 task.init_from=shipped task.real_ratio=0.5 task.lr=1e-4 task.lr_schedule=cosine task.max_epochs=4 task.patience=4 task.export_fp16=true classifier.device=cpu seed=0 hydra.run.dir=RUN9
-# held-out: stage 7's test split and the fresh collection (as above), and the patch crops of the nine map-development objects' mixed imprints at mapping seed 0
+# held-out, judged by stage 9's checkpoint (rewriting held_out_sim_v6_test.json and held_out_fresh_mixed_781.json): stage 7's test split
+# and the fresh collection (as above), and, new, the patch crops of the nine map-development objects' mixed imprints at mapping seed 0
+# (held_out_rig_dev9_mixed_patches.json)
 python run.py task=eval_classifier dataset.root=data/tactile/sim_v6_test
 python run.py task=eval_classifier dataset.root=data/tactile/fresh_mixed_781
 python -m neuralfeels_sem.bench.rig_touches data/tactile/rig_dev9_mixp_s0 --seed 0 --objects random_1 random_2 random_3 random_6 random_8 random_13 random_15 random_16 random_19 --frames 300 --keep-every 100000 100000 --mixed-patches 1
