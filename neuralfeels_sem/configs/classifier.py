@@ -28,6 +28,12 @@ class EfficientNetClassifierConfig:
     # against 90.2 % without, three seeds). 0: off.
     edge_streak_frames: int = 2
     edge_streak_confidence: float = 0.99
+    # Above 0: a longer streak at a lower bar backs an edge imprint too: this many frames
+    # just before, each naming the material at >= edge_long_streak_confidence. A finger
+    # sliding over a small part often reads it only at the gel's edge, frame after frame,
+    # short of 0.99 (edge_streak.py). 0: off.
+    edge_long_streak_frames: int = 0
+    edge_long_streak_confidence: float = 0.8
     # Not null: an imprint past max_edge_share read at >= this keeps its label (full trust)
     # on its own. The shipped model is adapted to the rig's edge imprints and reads them
     # right at this confidence nearly always (docs/classifier.md). null: off.
@@ -106,6 +112,16 @@ class EfficientNetClassifierConfig:
         if not 0.0 < self.edge_streak_confidence <= 1.0:
             raise ValueError(
                 f"classifier.edge_streak_confidence={self.edge_streak_confidence} must be in (0, 1]"
+            )
+        if self.edge_long_streak_frames < 0:
+            raise ValueError(
+                f"classifier.edge_long_streak_frames={self.edge_long_streak_frames} must be "
+                ">= 0 (0: off)"
+            )
+        if not 0.0 < self.edge_long_streak_confidence <= 1.0:
+            raise ValueError(
+                f"classifier.edge_long_streak_confidence={self.edge_long_streak_confidence} "
+                "must be in (0, 1]"
             )
         if self.edge_min_confidence is not None and not 0.0 < self.edge_min_confidence <= 1.0:
             raise ValueError(

@@ -112,7 +112,8 @@ def compared(key: str, flat: dict[str, Any] | None = None) -> bool:
 # came with 0 (no press backs itself); the default became 3. sensor.planner.weigh_by_contact
 # came with true: the active runs before it ranked by score alone. The networks' cpu_runtime
 # came with onnxruntime: runs before it ran them in torch. classifier.edge_min_confidence
-# came with null (off); the default became 0.99.
+# came with null (off); the default became 0.99. classifier.edge_long_streak_frames came
+# with 0 (off).
 ADDED_SINCE: dict[str, tuple[str, Any]] = {
     "classifier.patch_probe": ("classifier.max_patches", 0),
     "mapping.tracker.max_points_per_finger": ("mapping.tracker.max_points_per_source", 1000),
@@ -120,6 +121,7 @@ ADDED_SINCE: dict[str, tuple[str, Any]] = {
     "sensor.planner.weigh_by_contact": ("sensor.planner.candidates", False),
     "classifier.cpu_runtime": ("classifier.cuda_graphs", "torch"),
     "classifier.edge_min_confidence": ("classifier.min_confidence", None),
+    "classifier.edge_long_streak_frames": ("classifier.edge_streak_frames", 0),
     "mapping.mapper.tactile_depth.cpu_runtime": (
         "mapping.mapper.tactile_depth.min_contact_px",
         "torch",

@@ -54,6 +54,12 @@ def test_bad_settings_are_value_errors() -> None:
         EfficientNetClassifierConfig(edge_streak_frames=-2)
     with pytest.raises(ValueError, match="classifier.edge_streak_confidence"):
         EfficientNetClassifierConfig(edge_streak_confidence=1.5)
+    with pytest.raises(ValueError, match="edge_long_streak_frames"):
+        EdgeStreak(frames=-1, name="edge_long_streak")
+    with pytest.raises(ValueError, match="classifier.edge_long_streak_frames"):
+        EfficientNetClassifierConfig(edge_long_streak_frames=-1)
+    with pytest.raises(ValueError, match="classifier.edge_long_streak_confidence"):
+        EfficientNetClassifierConfig(edge_long_streak_confidence=0.0)
     with pytest.raises(ValueError, match="edge_min_confidence"):
         EdgeStreak(alone=0.0)
     with pytest.raises(ValueError, match="classifier.edge_min_confidence"):
@@ -93,3 +99,41 @@ def test_classifier_labels_an_edge_imprint_backed_by_the_fingers_streak(
     read(centred, 1, 0.995)
     read(centred, 1, 0.9)  # labelled, but not confident enough to extend the streak
     assert read(strip, 1, 0.999).label == NO_LABEL
+
+
+def test_a_long_streak_below_the_short_ones_bar_backs_an_edge_imprint(
+    untrained_checkpoint: Path,
+) -> None:
+    bg = background(0)
+    strip = bg.astype(np.int16)
+    strip[100:220, 222:] += 60  # contact only along the border
+    strip = np.clip(strip, 0, 255).astype(np.uint8)
+    clf = MaterialClassifier(
+        CLASSES, checkpoint=str(untrained_checkpoint), device="cpu", patch_spacing_px=0,
+        edge_streak_frames=2, edge_streak_confidence=0.99,
+        edge_long_streak_frames=3, edge_long_streak_confidence=0.8,
+    )  # fmt: skip
+    queue: list[np.ndarray] = []
+    clf.predict_images = lambda images, backgrounds: np.stack([queue.pop(0) for _ in images])
+
+    def read(top: int, confidence: float):
+        queue.append(one_hot(top, confidence))
+        return clf.classify([reading("ring", strip, bg)])[0]
+
+    # a finger sliding along a small part: edge readings of one material, none at 0.99
+    assert [read(0, c).label for c in (0.85, 0.9, 0.82)] == [NO_LABEL] * 3
+    fourth = read(0, 0.88)  # three frames before it at >= 0.8: backed
+    assert fourth.usable and fourth.label == 0 and fourth.weight == 1.0
+    assert read(1, 0.95).label == NO_LABEL  # another material starts a new streak
+    assert read(1, 0.95).label == NO_LABEL
+    read(1, 0.7)  # below the long streak's bar: the streak ends
+    assert [read(1, 0.9).label for _ in range(3)] == [NO_LABEL] * 3
+    assert read(1, 0.9).label == 1
+    off = MaterialClassifier(
+        CLASSES, checkpoint=str(untrained_checkpoint), device="cpu", patch_spacing_px=0,
+        edge_streak_frames=2, edge_streak_confidence=0.99,
+    )  # fmt: skip
+    off.predict_images = clf.predict_images
+    for _ in range(6):
+        queue.append(one_hot(0, 0.9))
+        assert off.classify([reading("ring", strip, bg)])[0].label == NO_LABEL  # off: never

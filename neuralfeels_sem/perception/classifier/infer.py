@@ -53,8 +53,9 @@ class MaterialClassifier:
     max_edge_share, edge_px: a touch with more than this share of its contact pixels within
         `edge_px` of the sensor's border (an imprint cut off by the edge, typical of a tilted
         pad) gets no label either (1.0 = never), unless edge_label_weight, the edge streak
-        (edge_streak_frames, edge_streak_confidence) or edge_min_confidence trusts it
-        (perception/classifier/edge_streak.py); the defaults are chosen on the rig's touches.
+        (edge_streak_frames, edge_streak_confidence), the longer streak at a lower bar
+        (edge_long_streak_frames, edge_long_streak_confidence) or edge_min_confidence trusts
+        it (perception/classifier/edge_streak.py); the defaults are chosen on the rig's touches.
     edge_label_weight: above 0, such an imprint read confidently keeps its label with this
         `TouchLabel.weight` (the map trusts it less; no patch readings), instead of none.
     contact_*: ContactGate parameters (see perception/contact.py).
@@ -84,6 +85,8 @@ class MaterialClassifier:
         edge_label_weight: float = 0.0,
         edge_streak_frames: int = 0,
         edge_streak_confidence: float = 0.99,
+        edge_long_streak_frames: int = 0,
+        edge_long_streak_confidence: float = 0.8,
         edge_min_confidence: float | None = None,
         contact_threshold: float = 30.0,
         contact_min_area: float = 0.01,
@@ -115,8 +118,12 @@ class MaterialClassifier:
         if not 0.0 <= edge_label_weight <= 1.0:
             raise ValueError(f"edge_label_weight={edge_label_weight} must be in [0, 1]")
         self.edge_label_weight = float(edge_label_weight)
-        streak = (edge_streak_frames, edge_streak_confidence, edge_min_confidence)
-        self.edge_streak = EdgeStreak(*streak)
+        self.edge_streaks = (
+            EdgeStreak(edge_streak_frames, edge_streak_confidence, edge_min_confidence),
+            EdgeStreak(
+                edge_long_streak_frames, edge_long_streak_confidence, None, "edge_long_streak"
+            ),
+        )
         self.gate = ContactGate(contact_threshold, contact_min_area, contact_blur_px)
         self.background_dir = background_dir
         self.first_frame_background = first_frame_background
@@ -308,7 +315,8 @@ class MaterialClassifier:
                                    [labels[i] for i in read])  # fmt: skip
         for r, label in zip(readings, labels):
             top = int(label.probs.argmax()) if label.probs is not None else None
-            self.edge_streak.update(r.finger, top, label.confidence)
+            for streak in self.edge_streaks:
+                streak.update(r.finger, top, label.confidence)
         return labels
 
     def _label(self, label: TouchLabel, probs: np.ndarray, at_edge: bool) -> None:
@@ -319,8 +327,8 @@ class MaterialClassifier:
         label.probs = probs
         label.confidence = float(probs[top])
         label.at_edge = at_edge
-        unbacked_edge = at_edge and not self.edge_streak.trusted(
-            label.finger, top, label.confidence
+        unbacked_edge = at_edge and not any(
+            streak.trusted(label.finger, top, label.confidence) for streak in self.edge_streaks
         )
         if probs[top] < self.min_confidence or (unbacked_edge and not self.edge_label_weight):
             label.low_confidence = True
