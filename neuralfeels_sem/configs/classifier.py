@@ -5,6 +5,8 @@ from __future__ import annotations
 from dataclasses import dataclass, field
 
 from neuralfeels_sem.configs.root import TaskConfig
+from neuralfeels_sem.perception.classifier.edge_streak import check_alone, check_streak
+from neuralfeels_sem.perception.classifier.gates import check_label_gates, check_patch_reading
 from neuralfeels_sem.perception.onnx_cpu import check_cpu_runtime
 
 
@@ -79,58 +81,23 @@ class EfficientNetClassifierConfig:
 
     def __post_init__(self) -> None:
         check_cpu_runtime("classifier.cpu_runtime", self.cpu_runtime)
-        if not 0 <= self.patch_spacing_px <= 240:
-            raise ValueError(
-                f"classifier.patch_spacing_px={self.patch_spacing_px} must be in 0..240 (0 = off)"
-            )
-        if not 1 <= self.max_patches <= 64:
-            raise ValueError(f"classifier.max_patches={self.max_patches} must be in 1..64")
-        if not 0 <= self.patch_probe <= 64:
-            raise ValueError(
-                f"classifier.patch_probe={self.patch_probe} must be in 0..64 (0: read every patch)"
-            )
-        if not 0.0 <= self.patch_min_contact <= 1.0:
-            raise ValueError(
-                f"classifier.patch_min_contact={self.patch_min_contact} must be in [0, 1]"
-            )
-        if not 0.0 <= self.patch_disagree_confidence <= 1.0:
-            raise ValueError(
-                f"classifier.patch_disagree_confidence={self.patch_disagree_confidence} "
-                "must be in [0, 1]"
-            )
-        if not 0.0 <= self.min_confidence <= 1.0:
-            raise ValueError(f"classifier.min_confidence={self.min_confidence} must be in [0, 1]")
-        if not 0.0 < self.max_edge_share <= 1.0:
-            raise ValueError(f"classifier.max_edge_share={self.max_edge_share} must be in (0, 1]")
-        if not 0.0 <= self.edge_label_weight <= 1.0:
-            raise ValueError(
-                f"classifier.edge_label_weight={self.edge_label_weight} must be in [0, 1]"
-            )
-        if self.edge_streak_frames < 0:
-            raise ValueError(
-                f"classifier.edge_streak_frames={self.edge_streak_frames} must be >= 0 (0: off)"
-            )
-        if not 0.0 < self.edge_streak_confidence <= 1.0:
-            raise ValueError(
-                f"classifier.edge_streak_confidence={self.edge_streak_confidence} must be in (0, 1]"
-            )
-        if self.edge_long_streak_frames < 0:
-            raise ValueError(
-                f"classifier.edge_long_streak_frames={self.edge_long_streak_frames} must be "
-                ">= 0 (0: off)"
-            )
-        if not 0.0 < self.edge_long_streak_confidence <= 1.0:
-            raise ValueError(
-                f"classifier.edge_long_streak_confidence={self.edge_long_streak_confidence} "
-                "must be in (0, 1]"
-            )
-        if self.edge_min_confidence is not None and not 0.0 < self.edge_min_confidence <= 1.0:
-            raise ValueError(
-                f"classifier.edge_min_confidence={self.edge_min_confidence} must be in (0, 1] "
-                "or null (off)"
-            )
-        if self.edge_px < 0:
-            raise ValueError(f"classifier.edge_px={self.edge_px} must be >= 0")
+        check_patch_reading(
+            self.patch_spacing_px,
+            self.max_patches,
+            self.patch_probe,
+            self.patch_min_contact,
+            self.patch_disagree_confidence,
+        )
+        check_label_gates(
+            self.min_confidence, self.max_edge_share, self.edge_px, self.edge_label_weight
+        )
+        check_streak("classifier.edge_streak", self.edge_streak_frames, self.edge_streak_confidence)
+        check_streak(
+            "classifier.edge_long_streak",
+            self.edge_long_streak_frames,
+            self.edge_long_streak_confidence,
+        )
+        check_alone(self.edge_min_confidence)
         if self.contact_threshold <= 0:
             raise ValueError(f"classifier.contact_threshold={self.contact_threshold} must be > 0")
         if not 0.0 < self.contact_min_area < 1.0:

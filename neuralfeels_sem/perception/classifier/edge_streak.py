@@ -18,6 +18,22 @@ from __future__ import annotations
 
 from dataclasses import dataclass, field
 
+LONG_STREAK = "classifier.edge_long_streak"  # the second streak's settings' prefix
+
+
+def check_streak(name: str, frames: int, confidence: float) -> None:
+    """A streak's settings: `name`_frames >= 0 (0: off), `name`_confidence in (0, 1]."""
+    if frames < 0:
+        raise ValueError(f"{name}_frames={frames} must be >= 0 (0: off)")
+    if not 0.0 < confidence <= 1.0:
+        raise ValueError(f"{name}_confidence={confidence} must be in (0, 1]")
+
+
+def check_alone(alone: float | None) -> None:
+    """classifier.edge_min_confidence: in (0, 1] or None (off)."""
+    if alone is not None and not 0.0 < alone <= 1.0:
+        raise ValueError(f"classifier.edge_min_confidence={alone} must be in (0, 1] or null (off)")
+
 
 @dataclass
 class EdgeStreak:
@@ -31,17 +47,13 @@ class EdgeStreak:
     # An edge reading at or above this probability is trusted on its own (None: never): a
     # model adapted to the rig's own edge imprints (bench/rig_touches.py) reads them so.
     alone: float | None = None
-    name: str = "edge_streak"  # the settings' prefix, for error messages
+    name: str = "classifier.edge_streak"  # the settings' prefix, for error messages
     _runs: dict[str, tuple[int, int]] = field(default_factory=dict)  # finger -> (label, run)
 
     def __post_init__(self) -> None:
         self.frames, self.confidence = int(self.frames), float(self.confidence)
-        if self.frames < 0:
-            raise ValueError(f"{self.name}_frames={self.frames} must be >= 0 (0: off)")
-        if not 0.0 < self.confidence <= 1.0:
-            raise ValueError(f"{self.name}_confidence={self.confidence} must be in (0, 1]")
-        if self.alone is not None and not 0.0 < self.alone <= 1.0:
-            raise ValueError(f"edge_min_confidence={self.alone} must be in (0, 1] or null (off)")
+        check_streak(self.name, self.frames, self.confidence)
+        check_alone(self.alone)
 
     def trusted(self, finger: str, top: int, confidence: float) -> bool:
         """True when this reading (top class, its probability) follows at least `frames`

@@ -22,7 +22,8 @@ import torch
 from neuralfeels_sem.core.errors import ConfigError, DataError
 from neuralfeels_sem.core.frame import TactileReading
 from neuralfeels_sem.perception.classifier.checkpoint import ClassifierCheckpoint, load_checkpoint
-from neuralfeels_sem.perception.classifier.edge_streak import EdgeStreak
+from neuralfeels_sem.perception.classifier.edge_streak import LONG_STREAK, EdgeStreak
+from neuralfeels_sem.perception.classifier.gates import check_label_gates, check_patch_reading
 from neuralfeels_sem.perception.classifier.inference import inference_model
 from neuralfeels_sem.perception.classifier.model import build_model
 from neuralfeels_sem.perception.classifier.patches import (
@@ -104,25 +105,15 @@ class MaterialClassifier:
         cuda_graphs: bool = True,
         cpu_runtime: str = "onnxruntime",
     ) -> None:
-        if not 0.0 <= min_confidence <= 1.0:
-            raise ValueError(f"min_confidence={min_confidence} must be in [0, 1]")
+        check_label_gates(min_confidence, max_edge_share, edge_px, edge_label_weight)
         self.class_names, self.checkpoint = list(class_names), checkpoint
         self.device_name = device
         self.min_confidence = float(min_confidence)
-        if not 0.0 < max_edge_share <= 1.0 or edge_px < 0:
-            raise ValueError(
-                f"max_edge_share={max_edge_share} must be in (0, 1] and edge_px={edge_px} >= 0"
-            )
-        self.max_edge_share = float(max_edge_share)
-        self.edge_px = int(edge_px)
-        if not 0.0 <= edge_label_weight <= 1.0:
-            raise ValueError(f"edge_label_weight={edge_label_weight} must be in [0, 1]")
+        self.max_edge_share, self.edge_px = float(max_edge_share), int(edge_px)
         self.edge_label_weight = float(edge_label_weight)
         self.edge_streaks = (
             EdgeStreak(edge_streak_frames, edge_streak_confidence, edge_min_confidence),
-            EdgeStreak(
-                edge_long_streak_frames, edge_long_streak_confidence, None, "edge_long_streak"
-            ),
+            EdgeStreak(edge_long_streak_frames, edge_long_streak_confidence, None, LONG_STREAK),
         )
         self.gate = ContactGate(contact_threshold, contact_min_area, contact_blur_px)
         self.background_dir = background_dir
@@ -150,16 +141,7 @@ class MaterialClassifier:
         disagree_confidence: float,
     ) -> None:
         """Check and keep the patch-reading arguments (see the class docstring)."""
-        if spacing_px < 0 or max_patches < 1:
-            raise ValueError(
-                f"patch_spacing_px={spacing_px} must be >= 0 and max_patches={max_patches} >= 1"
-            )
-        if probe < 0:
-            raise ValueError(f"patch_probe={probe} must be >= 0 (0: read every patch)")
-        if not 0.0 <= min_contact <= 1.0:
-            raise ValueError(f"patch_min_contact={min_contact} must be in [0, 1]")
-        if not 0.0 <= disagree_confidence <= 1.0:
-            raise ValueError(f"patch_disagree_confidence={disagree_confidence} must be in [0, 1]")
+        check_patch_reading(spacing_px, max_patches, probe, min_contact, disagree_confidence)
         self.patch_spacing_px = int(spacing_px)
         self.max_patches = int(max_patches)
         self.patch_probe = int(probe)
