@@ -72,20 +72,31 @@ def one_hot(top: int, confidence: float) -> np.ndarray:
     return p
 
 
+def edge_strip(bg: np.ndarray) -> np.ndarray:
+    """A frame whose contact lies only along the sensor's border."""
+    strip = bg.astype(np.int16)
+    strip[100:220, 222:] += 60
+    return np.clip(strip, 0, 255).astype(np.uint8)
+
+
+def scripted(checkpoint: Path, queue: list[np.ndarray], **streaks) -> MaterialClassifier:
+    """A classifier whose network answers with the probabilities queued, in order."""
+    clf = MaterialClassifier(
+        CLASSES, checkpoint=str(checkpoint), device="cpu", patch_spacing_px=0,
+        edge_streak_frames=2, edge_streak_confidence=0.99, **streaks,
+    )  # fmt: skip
+    clf.predict_images = lambda images, backgrounds: np.stack([queue.pop(0) for _ in images])
+    return clf
+
+
 def test_classifier_labels_an_edge_imprint_backed_by_the_fingers_streak(
     untrained_checkpoint: Path,
 ) -> None:
     bg = background(0)
-    strip = bg.astype(np.int16)
-    strip[100:220, 222:] += 60  # contact only along the border
-    strip = np.clip(strip, 0, 255).astype(np.uint8)
+    strip = edge_strip(bg)
     centred = pressed(0, 1, np.random.default_rng(2))
-    clf = MaterialClassifier(
-        CLASSES, checkpoint=str(untrained_checkpoint), device="cpu", patch_spacing_px=0,
-        edge_streak_frames=2, edge_streak_confidence=0.99,
-    )  # fmt: skip
     queue: list[np.ndarray] = []
-    clf.predict_images = lambda images, backgrounds: np.stack([queue.pop(0) for _ in images])
+    clf = scripted(untrained_checkpoint, queue)
 
     def read(image: np.ndarray, top: int, confidence: float):
         queue.append(one_hot(top, confidence))
@@ -105,16 +116,10 @@ def test_a_long_streak_below_the_short_ones_bar_backs_an_edge_imprint(
     untrained_checkpoint: Path,
 ) -> None:
     bg = background(0)
-    strip = bg.astype(np.int16)
-    strip[100:220, 222:] += 60  # contact only along the border
-    strip = np.clip(strip, 0, 255).astype(np.uint8)
-    clf = MaterialClassifier(
-        CLASSES, checkpoint=str(untrained_checkpoint), device="cpu", patch_spacing_px=0,
-        edge_streak_frames=2, edge_streak_confidence=0.99,
-        edge_long_streak_frames=3, edge_long_streak_confidence=0.8,
-    )  # fmt: skip
+    strip = edge_strip(bg)
     queue: list[np.ndarray] = []
-    clf.predict_images = lambda images, backgrounds: np.stack([queue.pop(0) for _ in images])
+    long = {"edge_long_streak_frames": 3, "edge_long_streak_confidence": 0.8}
+    clf = scripted(untrained_checkpoint, queue, **long)
 
     def read(top: int, confidence: float):
         queue.append(one_hot(top, confidence))
@@ -129,11 +134,7 @@ def test_a_long_streak_below_the_short_ones_bar_backs_an_edge_imprint(
     read(1, 0.7)  # below the long streak's bar: the streak ends
     assert [read(1, 0.9).label for _ in range(3)] == [NO_LABEL] * 3
     assert read(1, 0.9).label == 1
-    off = MaterialClassifier(
-        CLASSES, checkpoint=str(untrained_checkpoint), device="cpu", patch_spacing_px=0,
-        edge_streak_frames=2, edge_streak_confidence=0.99,
-    )  # fmt: skip
-    off.predict_images = clf.predict_images
+    off = scripted(untrained_checkpoint, queue)  # the long streak off (its class default)
     for _ in range(6):
         queue.append(one_hot(0, 0.9))
         assert off.classify([reading("ring", strip, bg)])[0].label == NO_LABEL  # off: never
