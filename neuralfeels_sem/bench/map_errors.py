@@ -6,8 +6,9 @@ region's case: never pressed, pressed without a label, labelled only wrongly, or
 rightly (border and extrapolation errors). Also audits the readings
 (eval/reading_audit.py): per material the frames that read it rightly, how right the
 readings the label vote left out were, and how right the presses the classifier abstained
-on would have been. Prints one line per run and the totals, and writes the full records
-as JSON.
+on would have been, and counts the trained points labelled wrongly by the kind of press
+they came from (across a border, split between materials, misread). Prints one line per
+run and the totals, and writes the full records as JSON.
 
     python -m neuralfeels_sem.bench.map_errors /work/runs/sweep/* --out errors.json
 """
@@ -45,6 +46,11 @@ def touch_set(mapper) -> TouchSet:
     points = [p.cpu().numpy().astype(np.float64) for p in state["points"]]
     used_labels = [t.cpu().numpy().astype(np.int64) for t in buffer.point_labels_used()]
     return TouchSet(points, labels, used, point_labels, used_labels)
+
+
+def at_edge_of(mapper) -> np.ndarray:
+    """(touches,) bool: whether each touch's imprint lay along the sensor's border."""
+    return np.array(mapper.memory.touches.state_dict()["at_edge"], dtype=bool)
 
 
 def abstentions(mapper) -> Abstentions:
@@ -92,9 +98,41 @@ def run_errors(run_dir: Path) -> dict:
         # How right the readings the loss trained on are, and what the same points would
         # give read perfectly (the gap to the ceiling above: presses left unread).
         **used_point_truth(obj, matching, touches),
+        "wrong_trained_points": wrong_trained_points(obj, touches, at_edge_of(mapper)),
         **report,
         "readings": audit,
     }
+
+
+# Which presses the wrongly labelled trained points come from (wrong_trained_points).
+WRONG_KINDS = ("split", "across_border", "across_border_at_edge", "misread", "other")
+
+
+def wrong_trained_points(obj, touches: TouchSet, at_edge: np.ndarray) -> dict[str, int]:
+    """Trained contact points whose label is not their true material, by their press:
+    `split` (its trained points carry two materials or more), `across_border` (one material
+    over an imprint whose truth is less than 95 % one material; `across_border_at_edge`:
+    those of edge imprints, which are labelled whole), `misread` (one material, the wrong
+    one, over one true material), `other` (a few points past a border the label is right
+    for). Points in ignored regions are not counted."""
+    counts = dict.fromkeys(WRONG_KINDS, 0)
+    for t, points in enumerate(touches.points):
+        labels = touches.used_labels_of(t)
+        truth = obj.labels_at(points)
+        judged = (labels >= 0) & (truth >= 0)
+        wrong = int(np.sum(judged & (labels != truth)))
+        if wrong == 0:
+            continue
+        shares = np.bincount(truth[judged]) / judged.sum()
+        if len(np.unique(labels[judged])) > 1:
+            counts["split"] += wrong
+        elif shares.max() < 0.95:
+            counts["across_border_at_edge" if at_edge[t] else "across_border"] += wrong
+        elif shares.argmax() != labels[judged][0]:
+            counts["misread"] += wrong
+        else:
+            counts["other"] += wrong
+    return counts
 
 
 def nearest_press_map(matching: MatchingEvaluator, touches: TouchSet) -> float | None:
@@ -199,10 +237,17 @@ def main(argv: list[str] | None = None) -> None:
         "mean points of mean-class matching lost per run:",
         {c: round(v, 1) for c, v in totals.items()},
     )
+    wrong = {k: sum(r["wrong_trained_points"][k] for r in rows) for k in WRONG_KINDS}
+    print("wrongly labelled trained points, by their press:", wrong)
     pooled = pool_audits([r["readings"] for r in rows])
     print(pooled_lines(pooled))
     if args.out is not None:
-        record = {"mean_points_lost": totals, "readings": pooled, "runs": rows}
+        record = {
+            "mean_points_lost": totals,
+            "wrong_trained_points": wrong,
+            "readings": pooled,
+            "runs": rows,
+        }
         args.out.write_text(json.dumps(record, indent=1))
 
 

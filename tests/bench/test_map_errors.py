@@ -6,10 +6,10 @@ from __future__ import annotations
 import numpy as np
 import pytest
 
-from neuralfeels_sem.bench.map_errors import used_point_truth
+from neuralfeels_sem.bench.map_errors import used_point_truth, wrong_trained_points
 from neuralfeels_sem.eval.error_sources import TouchSet
 from neuralfeels_sem.eval.matching import MatchingEvaluator
-from tests.eval.objects import two_material_sphere
+from tests.eval.objects import RADIUS, two_material_sphere
 from tests.eval.test_error_sources import FABRIC, PLASTIC, _press
 
 
@@ -80,3 +80,38 @@ def test_pooled_lines_name_each_figure(sphere) -> None:
     text = pooled_lines(pool_audits([audit]))
     assert "readings the vote left out: 1, right   0 %" in text
     assert "abstained (edge)" in text and "naming a material the map nearly lacks: 0" in text
+
+
+def _across(y_from: float, y_to: float) -> np.ndarray:
+    """32 contact points of a press at +x on the equator, from y_from to y_to (radians)."""
+    direction = np.column_stack([np.ones(32), np.linspace(y_from, y_to, 32), np.zeros(32)])
+    return RADIUS * direction / np.linalg.norm(direction, axis=1, keepdims=True)
+
+
+def test_wrong_trained_points_are_told_apart_by_their_press(sphere) -> None:
+    obj, _ = sphere
+    split = np.full(32, FABRIC)
+    split[:8] = PLASTIC  # a press whose patches disagree, a quarter of it wrongly
+    presses = [
+        (_press(+1.0), np.full(32, PLASTIC)),  # right throughout
+        (_across(-0.15, 0.15), np.full(32, PLASTIC)),  # one label over the border
+        (_across(-0.15, 0.15), np.full(32, PLASTIC)),  # the same, an edge imprint
+        (_press(-1.0), split),
+        (_press(-1.0, x=0.5), np.full(32, PLASTIC)),  # misread on one material
+        (_across(-0.005, 0.305), np.full(32, PLASTIC)),  # one point past the border
+    ]
+    touches = TouchSet(
+        [p for p, _ in presses],
+        [int(lab[0]) for _, lab in presses],
+        [True] * len(presses),
+        used_point_labels=[lab for _, lab in presses],
+    )
+    at_edge = np.array([False, False, True, False, False, False])
+    got = wrong_trained_points(obj, touches, at_edge)
+    assert got == {
+        "split": 8,
+        "across_border": 16,
+        "across_border_at_edge": 16,
+        "misread": 32,
+        "other": 1,
+    }
