@@ -5,7 +5,12 @@ from __future__ import annotations
 from dataclasses import dataclass, field
 
 from neuralfeels_sem.configs.root import TaskConfig
-from neuralfeels_sem.perception.classifier.edge_streak import check_alone, check_streak
+from neuralfeels_sem.perception.classifier.edge_streak import (
+    LONG_STREAK,
+    SHORT_STREAK,
+    check_alone,
+    check_streak,
+)
 from neuralfeels_sem.perception.classifier.gates import check_label_gates, check_patch_reading
 from neuralfeels_sem.perception.onnx_cpu import check_cpu_runtime
 
@@ -91,9 +96,9 @@ class EfficientNetClassifierConfig:
         check_label_gates(
             self.min_confidence, self.max_edge_share, self.edge_px, self.edge_label_weight
         )
-        check_streak("classifier.edge_streak", self.edge_streak_frames, self.edge_streak_confidence)
+        check_streak(SHORT_STREAK, self.edge_streak_frames, self.edge_streak_confidence)
         check_streak(
-            "classifier.edge_long_streak",
+            LONG_STREAK,
             self.edge_long_streak_frames,
             self.edge_long_streak_confidence,
         )

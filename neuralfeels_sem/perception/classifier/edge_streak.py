@@ -8,17 +8,19 @@ mapping seeds 0-2) edge readings at confidence >= 0.99 were right 83 % of the ti
 and 97 % after two such frames of the same finger naming the same material.
 
 A finger sliding over a small part often reads it at the gel's edge for many frames in a
-row at 0.7-0.98, never twice at 0.99, so a second streak, longer at a lower bar, backs
-those readings (classifier.edge_long_streak_*): on the generated development set (objects
-100-119, mapping seeds 0-1) the edge readings left without a label that followed four
-frames naming their material at >= 0.8 were right 96.9 % of the time (1079 frames).
+row below 0.99 (0.68-0.987 over the ten frames of the insert traced), so a second streak,
+longer at a lower bar, backs those readings (classifier.edge_long_streak_*): on the
+generated development set (objects 100-119, mapping seeds 0-1) the edge readings left
+without a label that followed four frames naming their material at >= 0.8 were right
+96.9 % of the time (1079 frames).
 """
 
 from __future__ import annotations
 
 from dataclasses import dataclass, field
 
-LONG_STREAK = "classifier.edge_long_streak"  # the second streak's settings' prefix
+# The two streaks' settings' prefixes (for error messages).
+SHORT_STREAK, LONG_STREAK = "classifier.edge_streak", "classifier.edge_long_streak"
 
 
 def check_streak(name: str, frames: int, confidence: float) -> None:
@@ -47,7 +49,7 @@ class EdgeStreak:
     # An edge reading at or above this probability is trusted on its own (None: never): a
     # model adapted to the rig's own edge imprints (bench/rig_touches.py) reads them so.
     alone: float | None = None
-    name: str = "classifier.edge_streak"  # the settings' prefix, for error messages
+    name: str = SHORT_STREAK  # the settings' prefix, for error messages
     _runs: dict[str, tuple[int, int]] = field(default_factory=dict)  # finger -> (label, run)
 
     def __post_init__(self) -> None:
