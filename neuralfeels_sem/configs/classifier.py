@@ -11,7 +11,11 @@ from neuralfeels_sem.perception.classifier.edge_streak import (
     check_alone,
     check_streak,
 )
-from neuralfeels_sem.perception.classifier.gates import check_label_gates, check_patch_reading
+from neuralfeels_sem.perception.classifier.gates import (
+    check_edge_extent,
+    check_label_gates,
+    check_patch_reading,
+)
 from neuralfeels_sem.perception.onnx_cpu import check_cpu_runtime
 
 
@@ -46,6 +50,10 @@ class EfficientNetClassifierConfig:
     # on its own. The shipped model is adapted to the rig's edge imprints and reads them
     # right at this confidence nearly always (docs/classifier.md). null: off.
     edge_min_confidence: float | None = 0.99
+    # Where a trusted edge imprint's label reaches: the whole imprint | patches (read patch
+    # by patch as other touches; a patch naming another material abstains) | centre (only
+    # the centroid crop's reach, which that label read).
+    edge_extent: str = "whole"
     edge_px: int = 16
     contact_threshold: float = 30.0
     contact_min_area: float = 0.01
@@ -103,6 +111,7 @@ class EfficientNetClassifierConfig:
             self.edge_long_streak_confidence,
         )
         check_alone(self.edge_min_confidence)
+        check_edge_extent(self.edge_extent)
         if self.contact_threshold <= 0:
             raise ValueError(f"classifier.contact_threshold={self.contact_threshold} must be > 0")
         if not 0.0 < self.contact_min_area < 1.0:

@@ -17,6 +17,17 @@ def check_label_gates(
         raise ValueError(f"classifier.edge_label_weight={edge_label_weight} must be in [0, 1]")
 
 
+EDGE_EXTENTS = ("whole", "patches", "centre")
+
+
+def check_edge_extent(edge_extent: str) -> None:
+    """How far a trusted edge imprint's label reaches (MaterialClassifier.classify)."""
+    if edge_extent not in EDGE_EXTENTS:
+        raise ValueError(
+            f"classifier.edge_extent={edge_extent!r} must be one of {', '.join(EDGE_EXTENTS)}"
+        )
+
+
 def check_patch_reading(
     spacing_px: int, max_patches: int, probe: int, min_contact: float, disagree_confidence: float
 ) -> None:

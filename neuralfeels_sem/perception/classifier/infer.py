@@ -23,7 +23,11 @@ from neuralfeels_sem.core.errors import ConfigError, DataError
 from neuralfeels_sem.core.frame import TactileReading
 from neuralfeels_sem.perception.classifier.checkpoint import ClassifierCheckpoint, load_checkpoint
 from neuralfeels_sem.perception.classifier.edge_streak import LONG_STREAK, EdgeStreak
-from neuralfeels_sem.perception.classifier.gates import check_label_gates, check_patch_reading
+from neuralfeels_sem.perception.classifier.gates import (
+    check_edge_extent,
+    check_label_gates,
+    check_patch_reading,
+)
 from neuralfeels_sem.perception.classifier.inference import inference_model
 from neuralfeels_sem.perception.classifier.model import build_model
 from neuralfeels_sem.perception.classifier.patches import (
@@ -57,6 +61,9 @@ class MaterialClassifier:
         (edge_streak_frames, edge_streak_confidence), the longer streak at a lower bar
         (edge_long_streak_frames, edge_long_streak_confidence) or edge_min_confidence trusts
         it (perception/classifier/edge_streak.py); the defaults are chosen on the rig's touches.
+    edge_extent: where a trusted edge imprint's label reaches: `whole` imprint, read
+        `patches` as other touches (a patch naming another material abstains), or only the
+        `centre` crop's reach.
     edge_label_weight: above 0, such an imprint read confidently keeps its label with this
         `TouchLabel.weight` (the map trusts it less; no patch readings), instead of none.
     contact_*: ContactGate parameters (see perception/contact.py).
@@ -89,6 +96,7 @@ class MaterialClassifier:
         edge_long_streak_frames: int = 0,
         edge_long_streak_confidence: float = 0.8,
         edge_min_confidence: float | None = None,
+        edge_extent: str = "whole",
         contact_threshold: float = 30.0,
         contact_min_area: float = 0.01,
         contact_blur_px: float = 3.0,
@@ -115,6 +123,8 @@ class MaterialClassifier:
             EdgeStreak(edge_streak_frames, edge_streak_confidence, edge_min_confidence),
             EdgeStreak(edge_long_streak_frames, edge_long_streak_confidence, None, LONG_STREAK),
         )
+        check_edge_extent(edge_extent)
+        self.edge_extent = edge_extent
         self.gate = ContactGate(contact_threshold, contact_min_area, contact_blur_px)
         self.background_dir = background_dir
         self.first_frame_background = first_frame_background
@@ -292,9 +302,7 @@ class MaterialClassifier:
             for i, p in zip(touched, probs):
                 self._label(labels[i], p, at_edge[i])
             if self.patch_spacing_px > 0:
-                read = [i for i in touched if not at_edge[i]]
-                self._read_patches([readings[i] for i in read], [masks[i] for i in read],
-                                   [labels[i] for i in read])  # fmt: skip
+                self._read_patches_of(readings, masks, labels, touched)
         for r, label in zip(readings, labels):
             top = int(label.probs.argmax()) if label.probs is not None else None
             for streak in self.edge_streaks:
@@ -319,6 +327,29 @@ class MaterialClassifier:
         label.label = top
         if unbacked_edge:
             label.weight = self.edge_label_weight
+
+    def _read_patches_of(
+        self,
+        readings: Sequence[TactileReading],
+        masks: list[np.ndarray],
+        labels: list[TouchLabel],
+        touched: list[int],
+    ) -> None:
+        """Patch readings of the touched frames; a labelled edge imprint's as `edge_extent` says."""
+        edge = [i for i in touched if labels[i].at_edge and labels[i].label != NO_LABEL]
+        read = [i for i in touched if not labels[i].at_edge]
+        if self.edge_extent == "patches":
+            read += edge
+        self._read_patches([readings[i] for i in read], [masks[i] for i in read],
+                           [labels[i] for i in read])  # fmt: skip
+        crop_px = self.loaded.meta.get("crop_px")
+        if self.edge_extent == "centre" and crop_px:
+            for i in edge:  # the centroid crop read this label; pixels beyond its reach get none
+                lab, centre = labels[i], patch_centres(masks[i], self.patch_spacing_px, 1)
+                lab.pixel_labels, lab.pixel_confidence = pixel_labels(
+                    readings[i].image.shape[:2], centre, np.array([lab.label]),
+                    np.array([lab.confidence]), crop_px / 2.0,
+                )  # fmt: skip
 
     def _read_patches(
         self, readings: Sequence[TactileReading], masks: list[np.ndarray], labels: list[TouchLabel]
@@ -348,7 +379,10 @@ class MaterialClassifier:
             top, conf = p.argmax(axis=1), p.max(axis=1)
             top = np.where(conf >= self.min_confidence, top, NO_LABEL)
             if label.label != NO_LABEL:  # naming another material than the centre's
-                doubt = (top != label.label) & (conf < self.patch_disagree_confidence)
+                # an edge imprint's label is trusted for its material only (edge_streak.py)
+                doubt = (top != label.label) & (
+                    (conf < self.patch_disagree_confidence) | label.at_edge
+                )
                 top = np.where(doubt, NO_LABEL, top)
             if len(p) < len(cs):  # one material throughout: the unread patches take it
                 top = np.full(len(cs), top[0])
