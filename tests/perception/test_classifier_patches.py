@@ -244,3 +244,38 @@ def test_pixel_labels_take_the_first_of_equally_near_centres_as_argmin_would() -
         assert (out[near] == labels[kept][nearest[near]]).all()
         assert (out[~near] == NO_LABEL).all()
         assert (conf[near] == confidence[kept][nearest[near]]).all()
+
+
+def test_edge_extent_sets_where_a_trusted_edge_imprints_label_reaches(
+    crop_checkpoint: Path,
+) -> None:
+    rng = np.random.default_rng(3)
+    marked = pressed(1, 0, rng)
+    marked[260:, :, 0] = 255  # the imprint's far end reads wood at 0.97, the centre plastic
+    touch = TactileReading("index", marked, np.eye(4), DIGIT_INTRINSICS, background(1))
+    contact = clf_contact(touch)
+    kwargs = {
+        "checkpoint": str(crop_checkpoint),
+        "device": "cpu",
+        "patch_spacing_px": 40,
+        "max_edge_share": 0.01,
+        "edge_px": 100,
+        "edge_min_confidence": 0.95,
+    }  # fmt: skip  (every imprint is an edge one, trusted alone at 0.97)
+
+    def classify(extent: str):
+        label = _MarkedRed(CLASSES, edge_extent=extent, **kwargs).classify([touch])[0]
+        assert label.at_edge and label.label == 0 and label.usable
+        return label
+
+    assert classify("whole").pixel_labels is None  # the label covers the whole imprint
+    patches = classify("patches").pixel_labels
+    assert (patches[contact] == 0).any() and 3 not in patches  # wood is not backed: abstains
+    centre = classify("centre").pixel_labels
+    rows = np.argwhere(contact)[:, 0]
+    assert set(np.unique(centre[contact])) == {0, NO_LABEL}  # the far end lies out of reach
+    assert (centre[contact][rows > rows.mean() + 56] == NO_LABEL).all()
+    with pytest.raises(ValueError, match="classifier.edge_extent"):
+        EfficientNetClassifierConfig(edge_extent="rim")
+    with pytest.raises(ValueError, match="classifier.edge_extent"):
+        MaterialClassifier(CLASSES, edge_extent="all")

@@ -23,19 +23,10 @@ from neuralfeels_sem.core.errors import ConfigError, DataError
 from neuralfeels_sem.core.frame import TactileReading
 from neuralfeels_sem.perception.classifier.checkpoint import ClassifierCheckpoint, load_checkpoint
 from neuralfeels_sem.perception.classifier.edge_streak import LONG_STREAK, EdgeStreak
-from neuralfeels_sem.perception.classifier.gates import (
-    check_edge_extent,
-    check_label_gates,
-    check_patch_reading,
-)
+from neuralfeels_sem.perception.classifier.gates import check_edge_extent, check_label_gates
 from neuralfeels_sem.perception.classifier.inference import inference_model
 from neuralfeels_sem.perception.classifier.model import build_model
-from neuralfeels_sem.perception.classifier.patches import (
-    crop_around,
-    crop_contact_share,
-    patch_centres,
-    pixel_labels,
-)
+from neuralfeels_sem.perception.classifier.patch_reader import PatchReader
 from neuralfeels_sem.perception.classifier.predict import predict_probs
 from neuralfeels_sem.perception.classifier.transforms import preprocess, resize_batch
 from neuralfeels_sem.perception.contact import ContactGate, edge_share
@@ -73,7 +64,7 @@ class MaterialClassifier:
     weights, input_size, crop_px: how `task=train_classifier` builds a new model
         (`new_model()`) and its inputs; a loaded checkpoint carries its own input size and crop.
     patch_spacing_px, max_patches, patch_probe: patch readings across the imprint
-        (perception/classifier/patches.py; `_read_patches`); spacing 0 = off.
+        (perception/classifier/patch_reader.py); spacing 0 = off.
     patch_min_contact: a patch past the centroid is centred only where its crop holds at
         least this share of imprint pixels (0: anywhere on the contact).
     patch_disagree_confidence: a patch naming another material than the touch's (centre)
@@ -131,7 +122,7 @@ class MaterialClassifier:
         self.weights = weights
         self.input_size = int(input_size)
         self.crop_px = crop_px
-        self._set_patch_reading(
+        self.patches = PatchReader(
             patch_spacing_px, max_patches, patch_probe, patch_min_contact, patch_disagree_confidence
         )
         self.cuda_graphs = bool(cuda_graphs)
@@ -141,22 +132,6 @@ class MaterialClassifier:
         self._model: torch.nn.Module | None = None
         self._ckpt: ClassifierCheckpoint | None = None
         self._device: torch.device | None = None
-
-    def _set_patch_reading(
-        self,
-        spacing_px: int,
-        max_patches: int,
-        probe: int,
-        min_contact: float,
-        disagree_confidence: float,
-    ) -> None:
-        """Check and keep the patch-reading arguments (see the class docstring)."""
-        check_patch_reading(spacing_px, max_patches, probe, min_contact, disagree_confidence)
-        self.patch_spacing_px = int(spacing_px)
-        self.max_patches = int(max_patches)
-        self.patch_probe = int(probe)
-        self.patch_min_contact = float(min_contact)
-        self.patch_disagree_confidence = float(disagree_confidence)
 
     # ---- training side -------------------------------------------------------------
     def new_model(self) -> torch.nn.Module:
@@ -301,8 +276,8 @@ class MaterialClassifier:
             )
             for i, p in zip(touched, probs):
                 self._label(labels[i], p, at_edge[i])
-            if self.patch_spacing_px > 0:
-                self._read_patches_of(readings, masks, labels, touched)
+            if self.patches.spacing_px > 0:
+                self._read_patches(readings, masks, labels, touched)
         for r, label in zip(readings, labels):
             top = int(label.probs.argmax()) if label.probs is not None else None
             for streak in self.edge_streaks:
@@ -328,7 +303,7 @@ class MaterialClassifier:
         if unbacked_edge:
             label.weight = self.edge_label_weight
 
-    def _read_patches_of(
+    def _read_patches(
         self,
         readings: Sequence[TactileReading],
         masks: list[np.ndarray],
@@ -336,87 +311,14 @@ class MaterialClassifier:
         touched: list[int],
     ) -> None:
         """Patch readings of the touched frames; a labelled edge imprint's as `edge_extent` says."""
+        crop_px = self.loaded.meta.get("crop_px")
+        if not crop_px:
+            return  # a whole-frame model has no patches to read
         edge = [i for i in touched if labels[i].at_edge and labels[i].label != NO_LABEL]
         read = [i for i in touched if not labels[i].at_edge]
-        if self.edge_extent == "patches":
-            read += edge
-        self._read_patches([readings[i] for i in read], [masks[i] for i in read],
-                           [labels[i] for i in read])  # fmt: skip
-        crop_px = self.loaded.meta.get("crop_px")
-        if self.edge_extent == "centre" and crop_px:
-            for i in edge:  # the centroid crop read this label; pixels beyond its reach get none
-                lab, centre = labels[i], patch_centres(masks[i], self.patch_spacing_px, 1)
-                lab.pixel_labels, lab.pixel_confidence = pixel_labels(
-                    readings[i].image.shape[:2], centre, np.array([lab.label]),
-                    np.array([lab.confidence]), crop_px / 2.0,
-                )  # fmt: skip
-
-    def _read_patches(
-        self, readings: Sequence[TactileReading], masks: list[np.ndarray], labels: list[TouchLabel]
-    ) -> None:
-        """Fill `pixel_labels` of each touch from crops across its imprint.
-
-        The first centre is the contact's centroid, whose crop the touch's own label read.
-        With `patch_probe` > 0 the next `patch_probe` centres (farthest-point order: the
-        imprint's far ends) are read first, in one batch for all touches; a touch whose
-        centre and probes all name one material confidently is taken as one material
-        throughout, and only the other touches have their remaining patches read (a second
-        batch).
-        """
-        crop_px = self.loaded.meta.get("crop_px")
-        if not crop_px or not readings:
-            return  # a whole-frame model has no patches to read
-        centres = [self._patch_centres(m, crop_px) for m in masks]
-        probe = self.patch_probe if self.patch_probe > 0 else self.max_patches
-        first = self._predict_centres(readings, centres, 1, 1 + probe, crop_px)
-        probs = [np.concatenate([lab.probs[None], p]) for lab, p in zip(labels, first)]
-        rest = [i for i, p in enumerate(probs) if len(p) < len(centres[i]) and not self._uniform(p)]
-        later = self._predict_centres([readings[i] for i in rest], [centres[i] for i in rest],
-                                      1 + probe, None, crop_px)  # fmt: skip
-        for i, p in zip(rest, later):
-            probs[i] = np.concatenate([probs[i], p])
-        for reading, cs, label, p in zip(readings, centres, labels, probs):
-            top, conf = p.argmax(axis=1), p.max(axis=1)
-            top = np.where(conf >= self.min_confidence, top, NO_LABEL)
-            if label.label != NO_LABEL:  # naming another material than the centre's
-                # an edge imprint's label is trusted for its material only (edge_streak.py)
-                doubt = (top != label.label) & (
-                    (conf < self.patch_disagree_confidence) | label.at_edge
-                )
-                top = np.where(doubt, NO_LABEL, top)
-            if len(p) < len(cs):  # one material throughout: the unread patches take it
-                top = np.full(len(cs), top[0])
-                conf = np.full(len(cs), conf.min(), dtype=conf.dtype)
-            label.pixel_labels, label.pixel_confidence = pixel_labels(
-                reading.image.shape[:2], cs, top, conf, crop_px / 2.0
-            )
-
-    def _patch_centres(self, mask: np.ndarray, crop_px: int) -> np.ndarray:
-        """The touch's patch centres; past the centroid only where the crop holds at least
-        `patch_min_contact` of imprint."""
-        eligible = None
-        if self.patch_min_contact > 0:
-            eligible = crop_contact_share(mask, crop_px) >= self.patch_min_contact
-        return patch_centres(mask, self.patch_spacing_px, self.max_patches, eligible)
-
-    def _uniform(self, probs: np.ndarray) -> bool:
-        """All readings (K, C) confident and naming one material."""
-        top = probs.argmax(axis=1)
-        return bool((probs.max(axis=1) >= self.min_confidence).all() and (top == top[0]).all())
-
-    def _predict_centres(
-        self,
-        readings: Sequence[TactileReading],
-        centres: list[np.ndarray],
-        start: int,
-        stop: int | None,
-        crop_px: int,
-    ) -> list[np.ndarray]:
-        """Per reading, the (k, C) probabilities of its crops at centres[start:stop] (one batch)."""
-        chosen = [cs[start:stop] for cs in centres]
-        crops = [crop_around(r.image, c, crop_px) for r, cs in zip(readings, chosen) for c in cs]
-        flat = (
-            self.predict_images(np.stack(crops)) if crops else np.zeros((0, len(self.class_names)))
-        )
-        bounds = np.cumsum([0] + [len(cs) for cs in chosen])
-        return [flat[a:b] for a, b in zip(bounds[:-1], bounds[1:])]
+        read += edge if self.edge_extent == "patches" else []
+        self.patches.read([readings[i] for i in read], [masks[i] for i in read],
+                          [labels[i] for i in read], self.predict_images, crop_px,
+                          self.min_confidence)  # fmt: skip
+        for i in edge if self.edge_extent == "centre" else []:
+            self.patches.centre_only(readings[i], masks[i], labels[i], crop_px)
