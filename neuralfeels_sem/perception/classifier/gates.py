@@ -31,7 +31,7 @@ def check_edge_extent(edge_extent: str) -> None:
 def check_patch_reading(
     spacing_px: int, max_patches: int, probe: int, min_contact: float, disagree_confidence: float
 ) -> None:
-    """The patch-reading settings (perception/classifier/patches.py)."""
+    """The patch-reading settings (perception/classifier/patch_reader.py)."""
     if not 0 <= spacing_px <= 240:
         raise ValueError(f"classifier.patch_spacing_px={spacing_px} must be in 0..240 (0 = off)")
     if not 1 <= max_patches <= 64:
