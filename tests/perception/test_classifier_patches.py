@@ -202,13 +202,17 @@ def test_probing_the_far_ends_first_skips_the_rest_only_of_a_touch_of_one_materi
         EfficientNetClassifierConfig(patch_probe=-1)
 
 
+def wood_at_far_end() -> TactileReading:
+    """A press whose far end _MarkedRed reads as wood at 0.97, its centre as plastic."""
+    marked = pressed(1, 0, np.random.default_rng(3))
+    marked[260:, :, 0] = 255
+    return TactileReading("index", marked, np.eye(4), DIGIT_INTRINSICS, background(1))
+
+
 def test_a_patch_naming_another_material_than_the_centre_needs_patch_disagree_confidence(
     crop_checkpoint: Path,
 ) -> None:
-    rng = np.random.default_rng(3)
-    marked = pressed(1, 0, rng)
-    marked[260:, :, 0] = 255  # the imprint's far end reads wood at 0.97, the centre plastic
-    touch = TactileReading("index", marked, np.eye(4), DIGIT_INTRINSICS, background(1))
+    touch = wood_at_far_end()
     kwargs = {"checkpoint": str(crop_checkpoint), "device": "cpu", "patch_spacing_px": 40}
     for bar, wood_kept in ((0.0, True), (0.96, True), (0.98, False)):
         label = _MarkedRed(CLASSES, patch_disagree_confidence=bar, **kwargs).classify([touch])[0]
@@ -249,10 +253,7 @@ def test_pixel_labels_take_the_first_of_equally_near_centres_as_argmin_would() -
 def test_edge_extent_sets_where_a_trusted_edge_imprints_label_reaches(
     crop_checkpoint: Path,
 ) -> None:
-    rng = np.random.default_rng(3)
-    marked = pressed(1, 0, rng)
-    marked[260:, :, 0] = 255  # the imprint's far end reads wood at 0.97, the centre plastic
-    touch = TactileReading("index", marked, np.eye(4), DIGIT_INTRINSICS, background(1))
+    touch = wood_at_far_end()
     contact = clf_contact(touch)
     kwargs = {
         "checkpoint": str(crop_checkpoint),
