@@ -31,7 +31,7 @@ class EfficientNetClassifierConfig:
     # No label when more than this share of the contact lies within edge_px of the border.
     max_edge_share: float = 0.5  # 1.0 = off
     # Above 0: an imprint past max_edge_share read confidently keeps its label, trusted
-    # this much by the map (TouchLabel.weight; no patch readings) instead of none.
+    # this much by the map (TouchLabel.weight; reach as edge_extent) instead of none.
     edge_label_weight: float = 0.0
     # Above 0: an imprint past max_edge_share keeps its label (at full trust) where the same
     # finger named that material at >= edge_streak_confidence on this many frames just

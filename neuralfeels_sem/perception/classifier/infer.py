@@ -56,7 +56,8 @@ class MaterialClassifier:
         `patches` as other touches (a patch naming another material abstains), or only the
         `centre` crop's reach.
     edge_label_weight: above 0, such an imprint read confidently keeps its label with this
-        `TouchLabel.weight` (the map trusts it less; no patch readings), instead of none.
+        `TouchLabel.weight` (the map trusts it less; its reach as edge_extent says), instead
+        of none.
     contact_*: ContactGate parameters (see perception/contact.py).
     background_dir: folder of `<finger>.png` no-contact frames (e.g. `<data>/_backgrounds`).
     first_frame_background: without any background, take a finger's first frame as its
