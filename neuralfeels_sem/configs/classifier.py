@@ -54,7 +54,7 @@ class EfficientNetClassifierConfig:
     # by patch as other touches; a patch naming another material abstains) | centre (only
     # the centroid crop's reach, which that label read). The streaks back the material,
     # not the imprint: development set 91.7 % mean-class with patches or centre against
-    # 91.1 % whole, two mapping seeds (docs/classifier.md).
+    # 91.1 % whole, two mapping seeds (docs/classifier.md). patch_spacing_px=0: whole.
     edge_extent: str = "patches"
     edge_px: int = 16
     contact_threshold: float = 30.0
