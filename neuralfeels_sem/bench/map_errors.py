@@ -112,9 +112,9 @@ def wrong_trained_points(obj, touches: TouchSet, at_edge: np.ndarray) -> dict[st
     """Trained contact points whose label is not their true material, by their press:
     `split` (its trained points carry two materials or more), `across_border` (one material
     over an imprint whose truth is less than 95 % one material; `across_border_at_edge`:
-    those of edge imprints, which are labelled whole), `misread` (one material, the wrong
-    one, over one true material), `other` (a few points past a border the label is right
-    for). Points in ignored regions are not counted."""
+    those of edge imprints, labelled as classifier.edge_extent says), `misread` (one
+    material, the wrong one, over one true material), `other` (a few points past a border
+    the label is right for). Points in ignored regions are not counted."""
     counts = dict.fromkeys(WRONG_KINDS, 0)
     for t, points in enumerate(touches.points):
         labels = touches.used_labels_of(t)

@@ -99,7 +99,7 @@ class PatchReader:
     def centre_only(self, reading: TactileReading, mask: np.ndarray, label: TouchLabel,
                     crop_px: int) -> None:  # fmt: skip
         """Label only the pixels within the centroid crop's reach (the crop the label read)."""
-        centre = patch_centres(mask, max(self.spacing_px, 1), 1)
+        centre = patch_centres(mask, self.spacing_px, 1)  # the centroid alone
         label.pixel_labels, label.pixel_confidence = pixel_labels(
             reading.image.shape[:2], centre, np.array([label.label]),
             np.array([label.confidence]), crop_px / 2.0,
