@@ -23,7 +23,6 @@ import numpy as np
 import torch
 from hydra import initialize_config_dir
 from hydra.utils import instantiate
-from scipy.spatial import cKDTree
 
 from neuralfeels_sem.configs import register_configs
 from neuralfeels_sem.eval.error_sources import CASES, TouchSet, error_sources
@@ -147,8 +146,7 @@ def nearest_press_map(matching: MatchingEvaluator, touches: TouchSet) -> float |
         return None
     points = np.concatenate([p for p, _ in used])
     labels = np.concatenate([lab for _, lab in used])
-    nearest = cKDTree(points).query(matching.points)[1]
-    return matching.evaluate_labels(labels[nearest])["matching_mean_class_pct"]
+    return matching.nearest_scores(points, labels)["matching_mean_class_pct"]
 
 
 def nearest_contact_truth(obj, matching: MatchingEvaluator, touches: TouchSet) -> float | None:
@@ -159,8 +157,7 @@ def nearest_contact_truth(obj, matching: MatchingEvaluator, touches: TouchSet) -
     points = np.concatenate(touches.points)
     truth = obj.labels_at(points)
     keep = truth >= 0
-    nearest = cKDTree(points[keep]).query(matching.points)[1]
-    return matching.evaluate_labels(truth[keep][nearest])["matching_mean_class_pct"]
+    return matching.nearest_scores(points[keep], truth[keep])["matching_mean_class_pct"]
 
 
 def nearest_press_truth(obj, matching: MatchingEvaluator, touches: TouchSet) -> float | None:
@@ -189,8 +186,7 @@ def used_point_truth(obj, matching: MatchingEvaluator, touches: TouchSet) -> dic
     scored = truth >= 0
     if not scored.any():
         return out
-    nearest = cKDTree(points[scored]).query(matching.points)[1]
-    nearest_truth = matching.evaluate_labels(truth[scored][nearest])
+    nearest_truth = matching.nearest_scores(points[scored], truth[scored])
     out["used_point_accuracy_pct"] = float(100.0 * np.mean(labels[scored] == truth[scored]))
     out["nearest_used_point_truth_mean_class_pct"] = nearest_truth["matching_mean_class_pct"]
     return out

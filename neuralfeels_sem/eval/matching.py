@@ -17,6 +17,7 @@ from __future__ import annotations
 from collections.abc import Callable
 
 import numpy as np
+from scipy.spatial import cKDTree
 
 from neuralfeels_sem.core.errors import NoDataError
 from neuralfeels_sem.objects.material_object import IGNORE, MaterialObject
@@ -122,6 +123,18 @@ class MatchingEvaluator:
     def evaluate(self, predict: Predictor) -> dict:
         """Every matching figure from one call of the predictor (keys as `label_scores`)."""
         return self.evaluate_labels(self.predictions(predict))
+
+    def nearest_scores(self, points: np.ndarray, labels: np.ndarray) -> dict:
+        """Every matching figure of the map that gives each sample the label of the nearest
+        of `points` (N, 3) (a nearest-point, Voronoi, map of labelled points)."""
+        points = np.asarray(points, dtype=np.float64).reshape(-1, 3)
+        labels = np.asarray(labels, dtype=np.int64).reshape(-1)
+        if len(points) == 0 or len(points) != len(labels):
+            raise ValueError(
+                f"need one label per point and at least one point; got {len(points)} points, "
+                f"{len(labels)} labels"
+            )
+        return self.evaluate_labels(labels[cKDTree(points).query(self.points)[1]])
 
     def evaluate_labels(self, pred: np.ndarray) -> dict:
         """Every matching figure of predictions already made at `self.points` (NO_PREDICTION allowed)."""

@@ -272,3 +272,19 @@ def test_a_tracked_pose_at_realtime_on_a_cpu_is_warned_about() -> None:
     assert tracked_realtime_caveat("gt", "realtime", cpu) is None
     assert tracked_realtime_caveat("track_known_shape", "offline", cpu) is None
     assert tracked_realtime_caveat("track", "realtime", torch.device("cuda")) is None
+
+
+def test_map_lag_reads_a_finished_run(tiny_run: Path, tmp_path: Path, capsys) -> None:
+    from neuralfeels_sem.bench.map_lag import SERIES, main
+
+    out = tmp_path / "lag.json"
+    main([str(tiny_run), str(tmp_path), "--every", "0.5", "--out", str(out)])
+    (record,) = json.loads(out.read_text())  # tmp_path holds no run: skipped
+    curve = json.loads((tiny_run / "metrics.json").read_text())["matching_mean_class_curve"]
+    halves = [p for p in curve if abs(p[1] * 2 - round(p[1] * 2)) < 1e-6]
+    assert [r["time_s"] for r in record["rows"]] == [p[1] for p in halves]
+    assert [r["field"] for r in record["rows"]] == [p[2] for p in halves]
+    last = record["rows"][-1]
+    assert last["readings"] is not None and 0.0 <= last["placement"] <= 100.0
+    assert set(record["first_reached_s"]) == set(SERIES)
+    assert "plushie seed 0 scripted: first at 90 % mean-class" in capsys.readouterr().out

@@ -1,0 +1,153 @@
+"""How soon a finished run's material map was right, against how soon its touches allowed.
+
+Reads each run directory's config, final checkpoint and matching curve (nothing is
+re-run). At every `--every` seconds of sensor time it sets the field's own mean-class
+matching (the run's curve) beside two maps built from the touches made by then, each a
+nearest-point map on the run's matching samples (a sample takes the label of the nearest
+contact point):
+- `readings`: the classifier's labels of those touches (abstentions left out, the label
+  vote not applied): what the readings so far support;
+- `placement`: the true material of every contact point so far, read or not (an oracle
+  of the simulator): what the places pressed allow with perfect reading.
+The sensor time at which each first reaches `--level` tells what holds a run back: a
+field that reaches it long after `readings` learns or extrapolates slower than its
+touches allow; a late `placement` means the fingers had not yet pressed enough of the
+object (where the object turned them and where the touch policy put them).
+
+    python -m neuralfeels_sem.bench.map_lag multirun/sweep/* --out lag.json
+"""
+
+from __future__ import annotations
+
+import argparse
+import json
+from pathlib import Path
+
+import numpy as np
+import torch
+from hydra import initialize_config_dir
+from hydra.utils import instantiate
+
+from neuralfeels_sem.configs import register_configs
+from neuralfeels_sem.eval.matching import MatchingEvaluator
+from neuralfeels_sem.mapping.checkpoint import load_checkpoint
+from neuralfeels_sem.tasks.build import BOUND_MARGIN, build_mapper, model_config
+from neuralfeels_sem.tasks.eval import load_run_config
+from neuralfeels_sem.utils.paths import REPO_DIR
+
+SERIES = ("field", "readings", "placement")
+
+
+def touch_history(mapper) -> tuple[list[np.ndarray], list[np.ndarray], np.ndarray]:
+    """The mapper's touches in arrival order: contact points (object frame), the
+    classifier's label of each point (-1: abstained or geometry only), frame index."""
+    state = mapper.memory.touches.state_dict()
+    points = [p.cpu().numpy().astype(np.float64) for p in state["points"]]
+    labels = [t.cpu().numpy().astype(np.int64) for t in state["labels"]]
+    return points, labels, np.asarray(state["frames"], dtype=np.int64)
+
+
+def maps_at(
+    obj, matching: MatchingEvaluator, points: list[np.ndarray], labels: list[np.ndarray]
+) -> dict[str, float | None]:
+    """Mean-class matching of the `readings` and `placement` maps of these touches."""
+    out: dict[str, float | None] = {"readings": None, "placement": None}
+    if not points:
+        return out
+    every = np.concatenate(points)
+    read = np.concatenate(labels)
+    if (read >= 0).any():
+        out["readings"] = matching.nearest_scores(every[read >= 0], read[read >= 0])[
+            "matching_mean_class_pct"
+        ]
+    truth = obj.labels_at(every)
+    if (truth >= 0).any():
+        out["placement"] = matching.nearest_scores(every[truth >= 0], truth[truth >= 0])[
+            "matching_mean_class_pct"
+        ]
+    return out
+
+
+def lag_rows(
+    obj,
+    matching: MatchingEvaluator,
+    history: tuple[list[np.ndarray], list[np.ndarray], np.ndarray],
+    curve: list[list[float]],
+    every_s: float,
+) -> list[dict]:
+    """One row per curve point at a multiple of `every_s`: time, frame and the three series."""
+    if every_s <= 0:
+        raise ValueError(f"--every={every_s} must be > 0 seconds")
+    points, labels, frames = history
+    rows = []
+    for frame, time_s, field_pct in curve:
+        steps = time_s / every_s
+        if abs(steps - round(steps)) > 1e-6:
+            continue
+        made = np.flatnonzero(frames <= frame)
+        row = {"time_s": float(time_s), "frame": int(frame), "field": float(field_pct)}
+        row.update(maps_at(obj, matching, [points[t] for t in made], [labels[t] for t in made]))
+        rows.append(row)
+    return rows
+
+
+def first_reached(rows: list[dict], key: str, level: float) -> float | None:
+    """Sensor time (s) of the first row whose `key` is at least `level` (None: never)."""
+    return next((r["time_s"] for r in rows if r[key] is not None and r[key] >= level), None)
+
+
+def run_lag(run_dir: Path, every_s: float, level: float) -> dict:
+    """The three series of one finished run and when each first reached `level`."""
+    cfg = load_run_config(run_dir)
+    obj = instantiate(cfg.object)
+    mapper = build_mapper(cfg, BOUND_MARGIN * obj.bounds_radius, torch.device("cpu"))
+    load_checkpoint(run_dir / "checkpoint.pt", mapper, model_config(cfg))
+    matching = MatchingEvaluator(obj, int(cfg.eval.num_surface_samples), int(cfg.eval.seed))
+    metrics = json.loads((run_dir / "metrics.json").read_text())
+    rows = lag_rows(
+        obj, matching, touch_history(mapper), metrics["matching_mean_class_curve"], every_s
+    )
+    return {
+        "run": str(run_dir),
+        "object": obj.name,
+        "seed": int(cfg.seed),
+        "policy": str(cfg.sensor.get("policy", "-")),
+        "level": level,
+        "first_reached_s": {k: first_reached(rows, k, level) for k in SERIES},
+        "rows": rows,
+    }
+
+
+def summary_line(record: dict) -> str:
+    reached = record["first_reached_s"]
+    parts = [f"{k} {'-' if reached[k] is None else f'{reached[k]:.1f} s'}" for k in SERIES]
+    return (
+        f"{record['object']} seed {record['seed']} {record['policy']}: "
+        f"first at {record['level']:g} % mean-class: " + ", ".join(parts)
+    )
+
+
+def main(argv: list[str] | None = None) -> None:
+    parser = argparse.ArgumentParser(description=__doc__.splitlines()[0])
+    parser.add_argument("runs", nargs="+", type=Path, help="run directories (task=map)")
+    parser.add_argument("--every", type=float, default=0.5, help="seconds between rows")
+    parser.add_argument("--level", type=float, default=90.0, help="mean-class % to reach")
+    parser.add_argument("--out", type=Path, default=None, help="write every record as JSON")
+    args = parser.parse_args(argv)
+    register_configs()
+    records = []
+    with initialize_config_dir(config_dir=str(REPO_DIR / "conf"), version_base="1.3"):
+        for run_dir in args.runs:
+            if not (run_dir / "metrics.json").is_file():
+                continue  # not a finished map run
+            records.append(run_lag(run_dir, args.every, args.level))
+            print(summary_line(records[-1]), flush=True)
+    if not records:
+        raise SystemExit("map_lag: no finished map run (metrics.json and checkpoint.pt) given")
+    if args.out is not None:
+        args.out.write_text(json.dumps(records, indent=1))
+        print(f"wrote {args.out}")
+
+
+if __name__ == "__main__":
+    main()

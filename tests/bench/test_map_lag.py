@@ -1,0 +1,88 @@
+"""map_lag: the field's curve beside what the touches made so far allow, over sensor time."""
+
+from __future__ import annotations
+
+import numpy as np
+import pytest
+
+from neuralfeels_sem.bench.map_lag import first_reached, lag_rows, summary_line
+from neuralfeels_sem.eval.matching import MatchingEvaluator
+from tests.eval.objects import two_material_sphere
+from tests.eval.test_error_sources import FABRIC, PLASTIC, _press
+
+
+@pytest.fixture(scope="module")
+def sphere():
+    obj = two_material_sphere()
+    return obj, MatchingEvaluator(obj, num_samples=4000, seed=0)
+
+
+def _history() -> tuple[list[np.ndarray], list[np.ndarray], np.ndarray]:
+    """A plastic press at frame 0, an abstained fabric press at 10, a fabric press read as
+    plastic at 12, and a fabric press read right at 25."""
+    points = [_press(+1.0), _press(-1.0), _press(-1.0, x=0.3), _press(-1.0, x=-0.3)]
+    labels = [np.full(32, PLASTIC), np.full(32, -1), np.full(32, PLASTIC), np.full(32, FABRIC)]
+    return points, labels, np.array([0, 10, 12, 25])
+
+
+def test_each_time_counts_only_the_touches_made_by_then(sphere) -> None:
+    obj, matching = sphere
+    curve = [[4, 0.5, 10.0], [9, 1.0, 20.0], [19, 2.0, 60.0], [29, 3.0, 95.0]]
+    rows = lag_rows(obj, matching, _history(), curve, every_s=1.0)
+    assert [r["time_s"] for r in rows] == [1.0, 2.0, 3.0]  # 0.5 s is not a whole second
+    assert [r["field"] for r in rows] == [20.0, 60.0, 95.0]
+    # 1 s: one plastic press, read right; placement alike (a constant map: half the classes).
+    assert rows[0]["readings"] == pytest.approx(50.0)
+    assert rows[0]["placement"] == pytest.approx(50.0)
+    # 2 s: the fabric side is pressed (placement splits the sphere near its border) but
+    # read only wrongly or not at all.
+    assert rows[1]["readings"] == pytest.approx(50.0)
+    assert rows[1]["placement"] > 95.0
+    # 3 s: a right fabric reading takes back part of the fabric side from the misread one.
+    assert 50.0 < rows[2]["readings"] < rows[2]["placement"]
+    assert first_reached(rows, "placement", 90.0) == 2.0
+    assert first_reached(rows, "readings", 60.0) == 3.0
+    assert first_reached(rows, "readings", 90.0) is None
+    assert first_reached(rows, "field", 99.0) is None
+
+
+def test_a_time_before_any_touch_has_no_touch_maps(sphere) -> None:
+    obj, matching = sphere
+    points, labels, frames = _history()
+    rows = lag_rows(obj, matching, (points, labels, frames + 100), [[9, 1.0, 5.0]], 1.0)
+    assert rows == [{"time_s": 1.0, "frame": 9, "field": 5.0, "readings": None, "placement": None}]
+
+
+def test_bad_spacing_is_a_value_error(sphere) -> None:
+    obj, matching = sphere
+    with pytest.raises(ValueError, match="--every"):
+        lag_rows(obj, matching, _history(), [[9, 1.0, 5.0]], every_s=0.0)
+
+
+def test_summary_line_names_each_series() -> None:
+    record = {
+        "object": "patchwork",
+        "seed": 1,
+        "policy": "active",
+        "level": 90.0,
+        "first_reached_s": {"field": 10.5, "readings": 8.0, "placement": None},
+    }
+    assert summary_line(record) == (
+        "patchwork seed 1 active: first at 90 % mean-class: field 10.5 s, readings 8.0 s, "
+        "placement -"
+    )
+
+
+def test_nearest_scores_need_one_label_per_point(sphere) -> None:
+    _, matching = sphere
+    with pytest.raises(ValueError, match="one label per point"):
+        matching.nearest_scores(np.zeros((3, 3)), np.zeros(2, dtype=int))
+    with pytest.raises(ValueError, match="at least one point"):
+        matching.nearest_scores(np.zeros((0, 3)), np.zeros(0, dtype=int))
+
+
+def test_no_finished_run_is_a_one_line_error(tmp_path) -> None:
+    from neuralfeels_sem.bench.map_lag import main
+
+    with pytest.raises(SystemExit, match="no finished map run"):
+        main([str(tmp_path)])
