@@ -48,23 +48,21 @@ def touch_history(mapper) -> tuple[list[np.ndarray], list[np.ndarray], np.ndarra
 
 
 def maps_at(
-    obj, matching: MatchingEvaluator, points: list[np.ndarray], labels: list[np.ndarray]
+    matching: MatchingEvaluator,
+    points: list[np.ndarray],
+    read: list[np.ndarray],
+    truth: list[np.ndarray],
 ) -> dict[str, float | None]:
-    """Mean-class matching of the `readings` and `placement` maps of these touches."""
+    """Mean-class matching of the `readings` and `placement` maps of these touches (per
+    touch: contact points, the classifier's label and the true material of each point)."""
     out: dict[str, float | None] = {"readings": None, "placement": None}
     if not points:
         return out
     every = np.concatenate(points)
-    read = np.concatenate(labels)
-    if (read >= 0).any():
-        out["readings"] = matching.nearest_scores(every[read >= 0], read[read >= 0])[
-            "matching_mean_class_pct"
-        ]
-    truth = obj.labels_at(every)
-    if (truth >= 0).any():
-        out["placement"] = matching.nearest_scores(every[truth >= 0], truth[truth >= 0])[
-            "matching_mean_class_pct"
-        ]
+    for key, labels in (("readings", np.concatenate(read)), ("placement", np.concatenate(truth))):
+        if (labels >= 0).any():
+            scores = matching.nearest_scores(every[labels >= 0], labels[labels >= 0])
+            out[key] = scores["matching_mean_class_pct"]
     return out
 
 
@@ -79,14 +77,18 @@ def lag_rows(
     if every_s <= 0:
         raise ValueError(f"--every={every_s} must be > 0 seconds")
     points, labels, frames = history
+    # The true material of every contact point, once: the closest-face query is the cost.
+    sizes = np.cumsum([len(p) for p in points])[:-1]
+    truth = np.split(obj.labels_at(np.concatenate(points)), sizes) if points else []
     rows = []
     for frame, time_s, field_pct in curve:
         steps = time_s / every_s
         if abs(steps - round(steps)) > 1e-6:
             continue
-        made = np.flatnonzero(frames <= frame)
+        made = np.flatnonzero(frames <= frame).tolist()
         row = {"time_s": float(time_s), "frame": int(frame), "field": float(field_pct)}
-        row.update(maps_at(obj, matching, [points[t] for t in made], [labels[t] for t in made]))
+        pick = [points[t] for t in made], [labels[t] for t in made], [truth[t] for t in made]
+        row.update(maps_at(matching, *pick))
         rows.append(row)
     return rows
 
