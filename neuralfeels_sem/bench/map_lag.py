@@ -1,10 +1,10 @@
 """How soon a finished run's material map was right, against how soon its touches allowed.
 
 Reads each run directory's config, final checkpoint and matching curve (nothing is
-re-run). At every `--every` seconds of sensor time it sets the field's own mean-class
-matching (the run's curve) beside two maps built from the touches made by then, each a
-nearest-point map on the run's matching samples (a sample takes the label of the nearest
-contact point):
+re-run). Every `--every` seconds of sensor time (the latest curve point by then) and at
+the run's end it sets the field's own mean-class matching (the run's curve) beside two
+maps built from the touches made by then, each a nearest-point map on the run's matching
+samples (a sample takes the label of the nearest contact point):
 - `readings`: the classifier's labels of those touches (abstentions left out, the label
   vote not applied): what the readings so far support;
 - `placement`: the true material of every contact point so far, read or not (an oracle
@@ -73,7 +73,8 @@ def lag_rows(
     curve: list[list[float]],
     every_s: float,
 ) -> list[dict]:
-    """One row per curve point at a multiple of `every_s`: time, frame and the three series."""
+    """Rows (time, frame and the three series) at the curve's points, every `every_s` of
+    sensor time: at each multiple of it, the latest curve point not after it."""
     if every_s <= 0:
         raise ValueError(f"--every={every_s} must be > 0 seconds")
     points, labels, frames = history
@@ -81,16 +82,24 @@ def lag_rows(
     sizes = np.cumsum([len(p) for p in points])[:-1]
     truth = np.split(obj.labels_at(np.concatenate(points)), sizes) if points else []
     rows = []
-    for frame, time_s, field_pct in curve:
-        steps = time_s / every_s
-        if abs(steps - round(steps)) > 1e-6:
-            continue
+    for frame, time_s, field_pct in sampled(curve, every_s):
         made = np.flatnonzero(frames <= frame).tolist()
         row = {"time_s": float(time_s), "frame": int(frame), "field": float(field_pct)}
         pick = [points[t] for t in made], [labels[t] for t in made], [truth[t] for t in made]
         row.update(maps_at(matching, *pick))
         rows.append(row)
     return rows
+
+
+def sampled(curve: list[list[float]], every_s: float) -> list[list[float]]:
+    """The curve's (frame, time, value) points at the latest one not after each multiple of
+    `every_s`, and its last (the run's end); each point once."""
+    times = np.array([p[1] for p in curve], dtype=np.float64)
+    if len(times) == 0:
+        return []
+    grid = np.arange(0.0, times[-1] + 1e-6, every_s)
+    picked = np.searchsorted(times, grid + 1e-6, side="right") - 1
+    return [curve[i] for i in sorted({*picked[picked >= 0].tolist(), len(curve) - 1})]
 
 
 def first_reached(rows: list[dict], key: str, level: float) -> float | None:
@@ -140,7 +149,7 @@ def main(argv: list[str] | None = None) -> None:
     records = []
     with initialize_config_dir(config_dir=str(REPO_DIR / "conf"), version_base="1.3"):
         for run_dir in args.runs:
-            if not (run_dir / "metrics.json").is_file():
+            if not all((run_dir / f).is_file() for f in ("metrics.json", "checkpoint.pt")):
                 continue  # not a finished map run
             records.append(run_lag(run_dir, args.every, args.level))
             print(summary_line(records[-1]), flush=True)

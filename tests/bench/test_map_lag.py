@@ -86,3 +86,12 @@ def test_no_finished_run_is_a_one_line_error(tmp_path) -> None:
 
     with pytest.raises(SystemExit, match="no finished map run"):
         main([str(tmp_path)])
+
+
+def test_an_uneven_curve_is_read_at_its_latest_point_before_each_step() -> None:
+    from neuralfeels_sem.bench.map_lag import sampled
+
+    curve = [[3, 0.3, 1.0], [8, 0.8, 2.0], [17, 1.7, 3.0], [22, 2.2, 4.0]]
+    assert sampled(curve, 1.0) == [[8, 0.8, 2.0], [17, 1.7, 3.0], [22, 2.2, 4.0]]  # and the end
+    assert sampled(curve, 0.5) == curve
+    assert sampled([], 1.0) == []
