@@ -14,7 +14,7 @@ field that reaches it long after `readings` learns or extrapolates slower than i
 touches allow; a late `placement` means the fingers had not yet pressed enough of the
 object (where the object turned them and where the touch policy put them).
 
-    python -m neuralfeels_sem.bench.map_lag multirun/sweep/* --out lag.json
+    python -m neuralfeels_sem.bench.map_lag multirun/sweep/* --out lag.json --plot lag.png
 """
 
 from __future__ import annotations
@@ -34,6 +34,7 @@ from neuralfeels_sem.mapping.checkpoint import load_checkpoint
 from neuralfeels_sem.tasks.build import BOUND_MARGIN, build_mapper, model_config
 from neuralfeels_sem.tasks.eval import load_run_config
 from neuralfeels_sem.utils.paths import REPO_DIR
+from neuralfeels_sem.viz.lag_plot import plot_map_lag
 
 SERIES = ("field", "readings", "placement")
 
@@ -144,6 +145,7 @@ def main(argv: list[str] | None = None) -> None:
     parser.add_argument("--every", type=float, default=0.5, help="seconds between rows")
     parser.add_argument("--level", type=float, default=90.0, help="mean-class % to reach")
     parser.add_argument("--out", type=Path, default=None, help="write every record as JSON")
+    parser.add_argument("--plot", type=Path, default=None, help="draw every run's series (png)")
     args = parser.parse_args(argv)
     register_configs()
     records = []
@@ -158,6 +160,8 @@ def main(argv: list[str] | None = None) -> None:
     if args.out is not None:
         args.out.write_text(json.dumps(records, indent=1))
         print(f"wrote {args.out}")
+    if args.plot is not None:
+        print(f"wrote {plot_map_lag(records, args.plot)}")
 
 
 if __name__ == "__main__":

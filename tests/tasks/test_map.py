@@ -278,7 +278,11 @@ def test_map_lag_reads_a_finished_run(tiny_run: Path, tmp_path: Path, capsys) ->
     from neuralfeels_sem.bench.map_lag import SERIES, main
 
     out = tmp_path / "lag.json"
-    main([str(tiny_run), str(tmp_path), "--every", "0.5", "--out", str(out)])
+    picture = tmp_path / "lag.png"
+    main(
+        [str(tiny_run), str(tmp_path), "--every", "0.5", "--out", str(out), "--plot", str(picture)]
+    )
+    assert picture.stat().st_size > 0
     (record,) = json.loads(out.read_text())  # tmp_path holds no run: skipped
     curve = json.loads((tiny_run / "metrics.json").read_text())["matching_mean_class_curve"]
     value_at = {p[1]: p[2] for p in curve}
