@@ -117,7 +117,11 @@ def run_lag(run_dir: Path, every_s: float, level: float) -> dict:
     matching = MatchingEvaluator(obj, int(cfg.eval.num_surface_samples), int(cfg.eval.seed))
     metrics = json.loads((run_dir / "metrics.json").read_text())
     rows = lag_rows(
-        obj, matching, touch_history(mapper), metrics["matching_mean_class_curve"], every_s
+        obj,
+        matching,
+        touch_history(mapper),
+        metrics.get("matching_mean_class_curve") or [],
+        every_s,
     )
     return {
         "run": str(run_dir),
@@ -143,10 +147,12 @@ def main(argv: list[str] | None = None) -> None:
     parser = argparse.ArgumentParser(description=__doc__.splitlines()[0])
     parser.add_argument("runs", nargs="+", type=Path, help="run directories (task=map)")
     parser.add_argument("--every", type=float, default=0.5, help="seconds between rows")
-    parser.add_argument("--level", type=float, default=90.0, help="mean-class % to reach")
+    parser.add_argument("--level", type=float, default=90.0, help="mean-class %% to reach")
     parser.add_argument("--out", type=Path, default=None, help="write every record as JSON")
     parser.add_argument("--plot", type=Path, default=None, help="draw every run's series (png)")
     args = parser.parse_args(argv)
+    if args.every <= 0:
+        parser.error(f"--every={args.every} must be > 0 seconds")
     register_configs()
     records = []
     with initialize_config_dir(config_dir=str(REPO_DIR / "conf"), version_base="1.3"):

@@ -95,3 +95,14 @@ def test_an_uneven_curve_is_read_at_its_latest_point_before_each_step() -> None:
     assert sampled(curve, 1.0) == [[8, 0.8, 2.0], [17, 1.7, 3.0], [22, 2.2, 4.0]]  # and the end
     assert sampled(curve, 0.5) == curve
     assert sampled([], 1.0) == []
+
+
+def test_help_and_bad_spacing_on_the_command_line(capsys) -> None:
+    from neuralfeels_sem.bench.map_lag import main
+
+    with pytest.raises(SystemExit) as done:
+        main(["--help"])
+    assert done.value.code == 0 and "mean-class % to reach" in capsys.readouterr().out
+    with pytest.raises(SystemExit) as done:
+        main(["somewhere", "--every", "0"])
+    assert done.value.code == 2 and "--every=0.0 must be > 0 seconds" in capsys.readouterr().err
