@@ -68,14 +68,20 @@ def abstentions(mapper) -> Abstentions:
     )
 
 
-def run_errors(run_dir: Path) -> dict:
-    """The error sources of one finished mapping run (object pose: the run's ground truth)."""
+def load_run(run_dir: Path) -> tuple:
+    """A finished run's config, object, mapper (its final checkpoint loaded, on the CPU) and
+    matching samples. Needs the project's configs composable (inside initialize_config_dir)."""
     cfg = load_run_config(run_dir)
     obj = instantiate(cfg.object)
-    bound = BOUND_MARGIN * obj.bounds_radius
-    mapper = build_mapper(cfg, bound, torch.device("cpu"))
+    mapper = build_mapper(cfg, BOUND_MARGIN * obj.bounds_radius, torch.device("cpu"))
     load_checkpoint(run_dir / "checkpoint.pt", mapper, model_config(cfg))
     matching = MatchingEvaluator(obj, int(cfg.eval.num_surface_samples), int(cfg.eval.seed))
+    return cfg, obj, mapper, matching
+
+
+def run_errors(run_dir: Path) -> dict:
+    """The error sources of one finished mapping run (object pose: the run's ground truth)."""
+    _, obj, mapper, matching = load_run(run_dir)
     probs = probability_predictor(mapper.field)(matching.points)
     touches = touch_set(mapper)
     report = error_sources(obj, matching.points, matching.faces, probs.argmax(axis=1), touches)

@@ -24,15 +24,11 @@ import json
 from pathlib import Path
 
 import numpy as np
-import torch
 from hydra import initialize_config_dir
-from hydra.utils import instantiate
 
+from neuralfeels_sem.bench.map_errors import load_run, touch_set
 from neuralfeels_sem.configs import register_configs
 from neuralfeels_sem.eval.matching import MatchingEvaluator
-from neuralfeels_sem.mapping.checkpoint import load_checkpoint
-from neuralfeels_sem.tasks.build import BOUND_MARGIN, build_mapper, model_config
-from neuralfeels_sem.tasks.eval import load_run_config
 from neuralfeels_sem.utils.paths import REPO_DIR
 from neuralfeels_sem.viz.lag_plot import plot_map_lag
 
@@ -42,29 +38,10 @@ SERIES = ("field", "readings", "placement")
 def touch_history(mapper) -> tuple[list[np.ndarray], list[np.ndarray], np.ndarray]:
     """The mapper's touches in arrival order: contact points (object frame), the
     classifier's label of each point (-1: abstained or geometry only), frame index."""
-    state = mapper.memory.touches.state_dict()
-    points = [p.cpu().numpy().astype(np.float64) for p in state["points"]]
-    labels = [t.cpu().numpy().astype(np.int64) for t in state["labels"]]
-    return points, labels, np.asarray(state["frames"], dtype=np.int64)
-
-
-def maps_at(
-    matching: MatchingEvaluator,
-    points: list[np.ndarray],
-    read: list[np.ndarray],
-    truth: list[np.ndarray],
-) -> dict[str, float | None]:
-    """Mean-class matching of the `readings` and `placement` maps of these touches (per
-    touch: contact points, the classifier's label and the true material of each point)."""
-    out: dict[str, float | None] = {"readings": None, "placement": None}
-    if not points:
-        return out
-    every = np.concatenate(points)
-    for key, labels in (("readings", np.concatenate(read)), ("placement", np.concatenate(truth))):
-        if (labels >= 0).any():
-            scores = matching.nearest_scores(every[labels >= 0], labels[labels >= 0])
-            out[key] = scores["matching_mean_class_pct"]
-    return out
+    touches = touch_set(mapper)
+    labels = [touches.labels_of(t) for t in range(len(touches.points))]
+    frames = mapper.memory.touches.state_dict()["frames"]
+    return touches.points, labels, np.asarray(frames, dtype=np.int64)
 
 
 def lag_rows(
@@ -79,15 +56,21 @@ def lag_rows(
     if every_s <= 0:
         raise ValueError(f"--every={every_s} must be > 0 seconds")
     points, labels, frames = history
-    # The true material of every contact point, once: the closest-face query is the cost.
-    sizes = np.cumsum([len(p) for p in points])[:-1]
-    truth = np.split(obj.labels_at(np.concatenate(points)), sizes) if points else []
+    series: dict[str, np.ndarray] = {}  # per contact point: its label in each touch map
+    if points:
+        every = np.concatenate(points)
+        point_frames = np.repeat(frames, [len(p) for p in points])
+        # The true material of every contact point, once: the closest-face query is the cost.
+        series = {"readings": np.concatenate(labels), "placement": obj.labels_at(every)}
     rows = []
     for frame, time_s, field_pct in sampled(curve, every_s):
-        made = np.flatnonzero(frames <= frame).tolist()
         row = {"time_s": float(time_s), "frame": int(frame), "field": float(field_pct)}
-        pick = [points[t] for t in made], [labels[t] for t in made], [truth[t] for t in made]
-        row.update(maps_at(matching, *pick))
+        row.update(readings=None, placement=None)
+        for key, point_labels in series.items():
+            keep = (point_frames <= frame) & (point_labels >= 0)
+            if keep.any():
+                scores = matching.nearest_scores(every[keep], point_labels[keep])
+                row[key] = scores["matching_mean_class_pct"]
         rows.append(row)
     return rows
 
@@ -110,11 +93,7 @@ def first_reached(rows: list[dict], key: str, level: float) -> float | None:
 
 def run_lag(run_dir: Path, every_s: float, level: float) -> dict:
     """The three series of one finished run and when each first reached `level`."""
-    cfg = load_run_config(run_dir)
-    obj = instantiate(cfg.object)
-    mapper = build_mapper(cfg, BOUND_MARGIN * obj.bounds_radius, torch.device("cpu"))
-    load_checkpoint(run_dir / "checkpoint.pt", mapper, model_config(cfg))
-    matching = MatchingEvaluator(obj, int(cfg.eval.num_surface_samples), int(cfg.eval.seed))
+    cfg, obj, mapper, matching = load_run(run_dir)
     metrics = json.loads((run_dir / "metrics.json").read_text())
     rows = lag_rows(
         obj,
