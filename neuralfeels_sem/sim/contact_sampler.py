@@ -112,6 +112,7 @@ class ContactSampler:
         reachable = planner.confirm_reachable(points)
         if planner.note_choice(touchdown_s, float(scores.max()), height, reachable):
             self._regrasp(touchdown_s)
+        self._consider_turn(points, touchdown_s)
         return [touches[i] for i in order]
 
     def _hotspot_height(self, planner, t: float) -> float | None:

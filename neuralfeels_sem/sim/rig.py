@@ -208,6 +208,29 @@ class SimRig(ContactSampler, FingerControl, RigProbes):
         if move is None:
             return
         k, _ = self.trajectory.regrasp(start, *move)
+        self._new_stretch(k)
+
+    def _consider_turn(self, points: np.ndarray, touchdown_s: float) -> None:
+        """sensor.planner.turn=advice: note where the finger could press (the screened
+        touches' object-frame points) and, when a comparison is due, turn the object the
+        way that brings the fingers the most touch score (sim/turn_choice.py)."""
+        turns = self.planner.turns
+        if turns is None:
+            return
+        pose = self.trajectory.pose(touchdown_s)
+        turns.note_reach(points @ pose[:3, :3].T + pose[:3, 3])
+        if not self.planner.turn_due(touchdown_s):
+            return
+        start = max(touchdown_s, self.trajectory.horizon_s)
+        plan = self.trajectory.steady_poses(start + turns.ahead)
+        options = [self.trajectory.turn_poses(start, a, turns.ahead) for a in turns.candidates]
+        axis = self.planner.choose_turn(touchdown_s, plan, options)
+        if axis is not None:
+            k, _ = self.trajectory.turn(start, axis)
+            self._new_stretch(k)
+
+    def _new_stretch(self, k: int) -> None:
+        """A regrasp or turn started segment k: drop what was built for the ones it replaced."""
         self.regrasp_reasons.append(self.planner.due_reason)
         self._libraries = {key: v for key, v in self._libraries.items() if key[1] < k}
         self._profiles = {s: v for s, v in self._profiles.items() if s < k}

@@ -38,6 +38,8 @@ from dataclasses import dataclass, field
 import numpy as np
 from scipy.spatial import cKDTree
 
+from neuralfeels_sem.sim.turn_choice import TurnChooser
+
 
 @dataclass
 class TouchScoreConfig:
@@ -186,7 +188,16 @@ class TouchPlannerConfig:
     keep_m: float = 0.02  # a regrasp brings the hotspot this close to the fingers' height
     axes: list[list[float]] = field(
         default_factory=lambda: [[1.0, 0.0, 0.0], [0.0, 1.0, 0.0], [0.0, 0.0, 1.0]]
-    )  # world-frame axes a regrasp may turn the object about
+    )  # world-frame axes a regrasp (or a chosen turn, either way round) may turn it about
+    # gait: the object turns as the scripted gait turns it (and as regrasps leave it);
+    # advice: every turn_check_s the turn that brings the most touch score to the fingers
+    # over turn_horizon_s replaces the plan when it gains turn_gain times as much
+    # (sim/turn_choice.py); at most one turn or regrasp per regrasp_gap_s.
+    turn: str = "gait"  # gait or advice
+    turn_check_s: float = 1.0
+    turn_horizon_s: float = 3.0
+    turn_gain: float = 1.25
+    turn_reach_m: float = 0.01
 
     def __post_init__(self) -> None:
         if self.candidates < 1:
@@ -206,6 +217,14 @@ class TouchPlannerConfig:
             )
         if self.regrasp_gap_s < 0 or self.max_offset_m < 0 or self.keep_m < 0:
             raise ValueError("sensor.planner: regrasp_gap_s, max_offset_m and keep_m must be >= 0")
+        if self.turn not in ("gait", "advice"):
+            raise ValueError(f"sensor.planner.turn={self.turn!r}: use gait or advice")
+        if min(self.turn_check_s, self.turn_horizon_s, self.turn_reach_m) <= 0:
+            raise ValueError(
+                "sensor.planner: turn_check_s, turn_horizon_s and turn_reach_m must be > 0"
+            )
+        if self.turn_gain < 1:
+            raise ValueError(f"sensor.planner.turn_gain={self.turn_gain} must be >= 1")
         if not self.axes or any(len(a) != 3 or np.linalg.norm(a) < 1e-9 for a in self.axes):
             raise ValueError(
                 f"sensor.planner.axes={self.axes} must be a non-empty list of non-zero [x, y, z]"
@@ -224,6 +243,13 @@ class TouchPlanner:
         self.aim: np.ndarray | None = None  # the point the next regrasp brings to the fingers
         self.due_reason = ""  # why the latest regrasp was due: starved, away or confirm
         self.choices: list[tuple[float, int, float]] = []  # (touch-down s, advice frame, score)
+        c = self.config
+        self.turns = (
+            TurnChooser(c.turn_check_s, c.turn_horizon_s, c.turn_gain, c.turn_reach_m, c.axes)
+            if c.turn == "advice"
+            else None
+        )
+        self._scored: tuple[TouchAdvice, np.ndarray] | None = None  # advice, its surface scores
 
     def rank(
         self, points: np.ndarray, contact: np.ndarray | None = None
@@ -292,6 +318,21 @@ class TouchPlanner:
             self.starved, self.unreached = 0, 0
             self.last_regrasp_s = float(touchdown_s)
         return due
+
+    def turn_due(self, t: float) -> bool:
+        """Whether to compare turns at t (turn=advice, advice there, no recent regrasp)."""
+        gap_ok = t - self.last_regrasp_s >= self.config.regrasp_gap_s
+        return self.turns is not None and self.advice is not None and gap_ok and self.turns.due(t)
+
+    def choose_turn(self, t: float, plan: np.ndarray, turns: list[np.ndarray]) -> np.ndarray | None:
+        """The axis to turn about from t, or None to keep the plan (see TurnChooser.choose)."""
+        if self._scored is None or self._scored[0] is not self.advice:
+            self._scored = (self.advice, self.advice.score(self.advice.surface))
+        axis = self.turns.choose(t, self.advice.surface, self._scored[1], plan, turns)
+        if axis is not None:
+            self.last_regrasp_s, self.due_reason = float(t), "turn"
+            self.starved, self.unreached = 0, 0
+        return axis
 
     def _confirm_aim(self) -> np.ndarray:
         """The unconfirmed reading where the map is least sure (ties: the first)."""

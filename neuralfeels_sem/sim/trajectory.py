@@ -106,9 +106,38 @@ class ObjectTrajectory:
     def segment(self, t: float) -> int:
         """Index of the segment (stretch of turning about one axis) that time t falls in."""
         self.horizon_s = max(self.horizon_s, t)
+        return self._index(t)
+
+    def _index(self, t: float) -> int:
+        """segment(t) without counting t as asked for (a preview moves no horizon)."""
         self._extend(t)
         starts = [s.start_s for s in self._segments]
         return max(int(np.searchsorted(starts, t, side="right")) - 1, 0)
+
+    def steady_poses(self, times: np.ndarray) -> np.ndarray:
+        """(K, 4, 4) poses the plan holds at `times`, without wobble or sway; a preview:
+        no time counts as asked for, so a regrasp may still start before them."""
+        out = np.tile(np.eye(4), (len(times), 1, 1))
+        for pose, t in zip(out, times):
+            seg = self._segments[self._index(float(t))]
+            pose[:3, :3] = rotation_matrix(seg.axis, self.speed * (t - seg.start_s)) @ seg.rotation
+            pose[:3, 3] = self.centre + self._offset(seg, float(t))
+        return out
+
+    def turn_poses(self, t0: float, axis: np.ndarray, ahead: np.ndarray) -> np.ndarray:
+        """(K, 4, 4) steady poses at t0 + ahead were the object to turn about `axis` from t0
+        on (`turn`), keeping its place in the grasp; a preview, as steady_poses."""
+        start = self.steady_poses(np.array([t0]))[0]
+        axis = np.asarray(axis, np.float64) / np.linalg.norm(axis)
+        out = np.tile(start, (len(ahead), 1, 1))
+        for pose, tau in zip(out, ahead):
+            pose[:3, :3] = rotation_matrix(axis, self.speed * float(tau)) @ start[:3, :3]
+        return out
+
+    def turn(self, t: float, axis: np.ndarray) -> tuple[int, float]:
+        """A regrasp that only changes the axis: the object keeps its place in the grasp."""
+        k = self._index(max(float(t), self.horizon_s))
+        return self.regrasp(t, axis, self._segments[k].offset)
 
     def segment_axis(self, k: int) -> np.ndarray:
         self._extend_to_index(k)

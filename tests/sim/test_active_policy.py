@@ -165,3 +165,31 @@ def test_a_confirm_regrasp_brings_an_unconfirmed_reading_under_a_finger() -> Non
     plain = _active_rig(advice, regrasp_after=100)
     assert _closest_touch_s(plain, pole, 6.0, 0.01) is None
     assert not plain.trajectory.regrasps
+
+
+def test_a_chosen_turn_brings_the_uncertain_cap_to_the_fingers() -> None:
+    # Only the cap round the first axis' pole is uncertain: the gait's turn about that axis
+    # never brings it to a finger in 4 s; turn=advice turns the object so that it does.
+    sphere = two_material_sphere()
+    surface = np.asarray(sphere.mesh.vertices)
+    probe = SimRig(sphere, seed=0, **MOTION)
+    probe.open()
+    pose, axis = probe.trajectory.pose(0.0), probe.trajectory.segment_axis(0)
+    height = (surface @ pose[:3, :3].T) @ axis
+    cap = (height > 0.8 * height.max()).astype(float)
+    advice = TouchAdvice(surface, cap, surface, TouchScoreConfig(novelty_weight=0.0), 0)
+    share = {}
+    for turn in ("gait", "advice"):
+        rig = _active_rig(advice, turn=turn, regrasp_after=100)
+        on_cap = []
+        for i in range(40):
+            state = rig.state_at(i / 10)
+            for f, p in state.contact_point.items():
+                if state.touching[f] and p is not None:
+                    on_cap.append(cap[np.argmin(np.linalg.norm(surface - p, axis=1))])
+        share[turn] = float(np.mean(on_cap))
+        if turn == "advice":
+            assert rig.regrasp_reasons and set(rig.regrasp_reasons) == {"turn"}
+        else:
+            assert not rig.trajectory.regrasps
+    assert share["gait"] == 0.0 and share["advice"] > 0.1, share

@@ -263,6 +263,11 @@ class SimSensor(IndexedSensor):
                 {"time_s": t, "axis": axis.tolist(), "offset_m": offset.tolist(), "why": why}
                 for (t, axis, offset), why in zip(trajectory.regrasps, self.rig.regrasp_reasons)
             ],
+            # turn=advice: each comparison of the plan with the best turn (sim/turn_choice.py)
+            "turn_checks": [
+                {"time_s": t, "plan_gain": kept, "best_gain": best, "axis": axis}
+                for t, kept, best, axis in (planner.turns.log if planner.turns else [])
+            ],
         }
 
     def close(self) -> None:

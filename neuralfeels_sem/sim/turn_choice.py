@@ -1,0 +1,93 @@
+"""Which way to turn the object next (sensor.planner.turn=advice): the turn that brings the
+most touch score to where the fingers press.
+
+The gait turns the object about one axis and then another on a fixed schedule, whatever
+the map already knows. With `turn=advice` the active policy chooses instead. The touches
+the contact sampler screens (the surface points a finger could press at that moment) are
+kept in the world frame as the fingers' reach. Every `turn_check_s` the candidate motions
+are compared over the next `turn_horizon_s`: the advice's surface samples are carried
+along each (steady poses, every `STEP_S`), a sample counts as brought to the fingers when
+it passes within `turn_reach_m` of a reach point, and the motion's gain is the summed
+touch score of the samples it brings, each once. The candidates are the plan (the turn the
+object is in, with the gait's alternation ahead) and a turn about each of the planner's
+`axes`, either way round; a turn replaces the plan only when its gain exceeds the plan's
+by the factor `turn_gain`, so that a near tie keeps the gait's motion.
+"""
+
+from __future__ import annotations
+
+from collections import deque
+
+import numpy as np
+from scipy.spatial import cKDTree
+
+STEP_S = 0.25  # the sweep is followed at this spacing (7.5 degrees at 30 deg/s)
+REACH_MEMORY = 1024  # reach points kept (about 6 s of screened touches)
+
+
+def sweep_gain(
+    surface: np.ndarray, scores: np.ndarray, poses: np.ndarray, reach: cKDTree, reach_m: float
+) -> float:
+    """Summed score of the object-frame surface samples that pass within reach_m of a reach
+    point (world) at any of the (K, 4, 4) world_T_object poses, each sample counted once."""
+    brought = np.zeros(len(surface), bool)
+    for pose in poses:
+        world = surface @ pose[:3, :3].T + pose[:3, 3]
+        dist, _ = reach.query(world, distance_upper_bound=reach_m)
+        brought |= np.isfinite(dist)
+    return float(scores[brought].sum())
+
+
+class TurnChooser:
+    """Keeps the fingers' reach and compares candidate turns (numpy only).
+
+    Args:
+        check_s: seconds between comparisons.
+        horizon_s: how far ahead each motion is followed.
+        gain: the factor by which a turn's gain must exceed the plan's to replace it.
+        reach_m: how near a reach point a surface sample must pass to count as brought.
+        axes: unit world axes a turn may be about (each either way round).
+    """
+
+    def __init__(
+        self, check_s: float, horizon_s: float, gain: float, reach_m: float, axes: np.ndarray
+    ) -> None:
+        self.check_s, self.gain, self.reach_m = float(check_s), float(gain), float(reach_m)
+        self.ahead = np.arange(1, int(round(horizon_s / STEP_S)) + 1) * STEP_S
+        axes = np.asarray(axes, np.float64).reshape(-1, 3)
+        axes = axes / np.linalg.norm(axes, axis=1, keepdims=True)
+        self.candidates = np.concatenate([axes, -axes])
+        self.reach: deque = deque(maxlen=REACH_MEMORY)
+        self.last_check_s = -np.inf
+        # (time, plan's gain, best turn's gain, chosen axis or None) per comparison
+        self.log: list[tuple[float, float, float, list[float] | None]] = []
+
+    def note_reach(self, world_points: np.ndarray) -> None:
+        """Add the world-frame points a finger could press at one touch-down."""
+        self.reach.extend(np.asarray(world_points, np.float64).reshape(-1, 3))
+
+    def due(self, t: float) -> bool:
+        return bool(self.reach) and t - self.last_check_s >= self.check_s
+
+    def choose(
+        self,
+        t: float,
+        surface: np.ndarray,
+        scores: np.ndarray,
+        plan: np.ndarray,
+        turns: list[np.ndarray],
+    ) -> np.ndarray | None:
+        """The axis to turn about from t (a row of `candidates`), or None to keep the plan.
+
+        plan: (K, 4, 4) poses at t + ahead; turns: one such array per candidate axis.
+        """
+        if len(turns) != len(self.candidates):
+            raise ValueError(f"{len(turns)} turns for {len(self.candidates)} candidate axes")
+        self.last_check_s = float(t)
+        reach = cKDTree(np.asarray(self.reach))
+        kept = sweep_gain(surface, scores, plan, reach, self.reach_m)
+        gains = [sweep_gain(surface, scores, poses, reach, self.reach_m) for poses in turns]
+        best = int(np.argmax(gains))
+        chosen = self.candidates[best] if gains[best] > self.gain * kept else None
+        self.log.append((float(t), kept, gains[best], None if chosen is None else chosen.tolist()))
+        return chosen
