@@ -21,6 +21,7 @@ from torch import Tensor, nn
 
 from neuralfeels_sem.fields.hash_grid import HashGridConfig, HashGridEncoding
 from neuralfeels_sem.fields.heads import MaterialHead, MaterialHeadConfig, SdfHead, SdfHeadConfig
+from neuralfeels_sem.fields.material_support import MaterialSupport
 
 
 @dataclass
@@ -68,6 +69,7 @@ class SemanticField(nn.Module):
             material,
             sparse_grad=config.encoding.sparse_grad,
         )
+        self.support: MaterialSupport | None = None  # set by the mapper (mapping.mapper.fill_m)
 
     def normalise(self, x: Tensor) -> Tensor:
         """Metres in the object frame -> [-1, 1]^3 (clamped)."""
@@ -102,10 +104,17 @@ class SemanticField(nn.Module):
         return self._sdf_branch(self.normalise(x))[0]
 
     def material_logits(self, x: Tensor) -> Tensor:
-        """Material class logits (N, C); runs the SDF branch only when concatenating z(x)."""
+        """Material class logits (N, C) as the map reads them: the material branch's, with
+        the nearest trained touch's label mixed in beyond `support.fill_m` of every one when
+        the mapper set a `support` (fields/material_support.py; training uses `forward`).
+        Runs the SDF branch only when concatenating z(x)."""
         x_n = self.normalise(x)
         hidden = self._sdf_branch(x_n)[1] if self.concat_sdf_features else None
-        return self._material_branch(x_n, hidden)
+        logits = self._material_branch(x_n, hidden)
+        if self.support is None:
+            return logits
+        probs = self.support.blend(x, torch.softmax(logits.float(), dim=-1))
+        return torch.log(probs.clamp_min(1e-12))
 
     @torch.no_grad()
     def predict_material(self, x: Tensor) -> Tensor:

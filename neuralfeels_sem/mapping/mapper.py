@@ -25,10 +25,12 @@ from tqdm import tqdm
 from neuralfeels_sem.core.errors import ConfigError, NoDataError, NumericalError
 from neuralfeels_sem.core.frame import Frame
 from neuralfeels_sem.core.materials import DEFAULT_MATERIALS
+from neuralfeels_sem.fields.material_support import current_support
 from neuralfeels_sem.mapping.batch import MATERIAL_SAMPLINGS, BatchSampler, per_keyframe_losses
 from neuralfeels_sem.mapping.bookkeeping import TrainingLog
 from neuralfeels_sem.mapping.frame_points import CAMERA_MASKS, PointExtractor
 from neuralfeels_sem.mapping.label_vote import LabelVote
+from neuralfeels_sem.mapping.mapper_checks import check_counts, check_lengths_and_weights
 from neuralfeels_sem.mapping.memory import MapMemory
 from neuralfeels_sem.mapping.objective import TERMS, MapperObjective
 from neuralfeels_sem.mapping.press_fusion import PressFusion
@@ -92,6 +94,9 @@ class MapperConfig:
     # 30 s runs (docs/field_and_mapper.md#where-a-default-runs-time-goes).
     space_prior_hull_every: int = 5
     material_weight: float = 0.1
+    # Beyond this (metres) from every trained touch point the map reads the nearest one's
+    # label (fields/material_support.py); null: the material branch's extrapolation alone.
+    fill_m: float | None = 0.01
     # A labelled touch contradicted by its neighbours (>= min_neighbours labelled touches
     # within radius metres, fewer than min_agreement of them with its label) is not used
     # for the material loss, nor one backed by fewer than min_support touches with its label
@@ -155,8 +160,8 @@ class MapperConfig:
             raise ValueError(
                 f"mapping.mapper.camera_mask={self.camera_mask!r}: use one of {', '.join(CAMERA_MASKS)}"
             )
-        self._check_counts()
-        self._check_lengths_and_weights()
+        check_counts(self)
+        check_lengths_and_weights(self)
         if self.label_vote_support_radius is not None and self.label_vote_support_radius < 0:
             raise ValueError(
                 f"mapping.mapper.label_vote_support_radius={self.label_vote_support_radius} "
@@ -168,44 +173,12 @@ class MapperConfig:
             )
         PressFusion.from_config(self)  # checks the fuse_* settings
         LabelVote.from_config(self)  # checks label_vote_press_reach
+        if self.fill_m is not None and self.fill_m <= 0:
+            raise ValueError(f"mapping.mapper.fill_m={self.fill_m} must be > 0 or null")
         if self.max_keyframes <= self.window_recent:
             raise ValueError(
                 f"mapping.mapper.max_keyframes={self.max_keyframes} must exceed window_recent ({self.window_recent})"
             )
-
-    def _check_counts(self) -> None:
-        at_least = {
-            "num_classes": 2, "steps_per_frame": 1, "warmup_steps": 0,
-            "camera_points_per_frame": 1, "tactile_points_per_touch": 1,
-            "camera_rays": 0, "tactile_rays": 0, "band_samples": 0, "free_samples": 0,
-            "material_points": 0, "eikonal_points": 0, "space_prior_points": 0,
-            "space_prior_resolution": 8, "space_prior_hull_every": 1, "window_recent": 1,
-            "window_by_loss": 0, "max_keyframes": 1, "label_vote_min_neighbours": 1,
-            "label_vote_min_support": 0, "label_vote_press_gap": 0, "label_vote_steady_frames": 0,
-        }  # fmt: skip
-        for name, low in at_least.items():
-            if getattr(self, name) < low:
-                raise ValueError(f"mapping.mapper.{name}={getattr(self, name)} must be >= {low}")
-        if self.camera_rays + self.tactile_rays == 0:
-            raise ValueError(
-                "mapping.mapper.camera_rays and tactile_rays are both 0; at least one must be >= 1"
-            )
-
-    def _check_lengths_and_weights(self) -> None:
-        if self.truncation <= 0:
-            raise ValueError(f"mapping.mapper.truncation={self.truncation} must be > 0")
-        for name in ("camera_free_range", "tactile_free_range"):
-            if getattr(self, name) < self.truncation:
-                raise ValueError(
-                    f"mapping.mapper.{name}={getattr(self, name)} must be >= truncation ({self.truncation})"
-                )
-        non_negative = (
-            "camera_weight", "tactile_weight", "sdf_weight", "freespace_weight",
-            "eikonal_weight", "space_prior_weight", "material_weight", "label_vote_radius",
-        )  # fmt: skip
-        for name in non_negative:
-            if getattr(self, name) < 0:
-                raise ValueError(f"mapping.mapper.{name}={getattr(self, name)} must be >= 0")
 
 
 class OnlineMapper:
@@ -310,6 +283,7 @@ class OnlineMapper:
         points = self.points.touch_points(frame, world_T_object, depths)
         _, tactile = self.memory.add(frame, points, None, world_T_object, touch_labels)
         self.log.tactile_points_total += tactile
+        self._refresh_support()
         return tactile
 
     def _policy_steps(self, points: dict[str, np.ndarray], labels: Mapping[str, TouchLabel]) -> int:
@@ -337,7 +311,17 @@ class OnlineMapper:
         for _ in tqdm(range(steps), desc="mapping", unit="step", leave=False, disable=steps < 100):
             for key, value in self.step().items():
                 totals[key] += value
+        self._refresh_support()
         return {k: v / max(steps, 1) for k, v in totals.items()}
+
+    def _refresh_support(self) -> None:
+        """Hand the field the labelled points it trains on, for the fill (fill_m)."""
+        if self.config.fill_m is not None and hasattr(self.field, "support"):
+            touch = self.memory.touches.tensors()
+            self.field.support = current_support(
+                self.field.support, touch["labelled_points"], touch["labelled_labels"],
+                self.num_classes, self.config.fill_m,
+            )  # fmt: skip
 
     def step(self) -> dict[str, float]:
         """One optimiser step on a fresh batch; returns its losses."""
@@ -383,6 +367,7 @@ class OnlineMapper:
         self.log.load_state_dict(state["counters"])
         restore_rng(state["rng"], self.generator)
         self.points.load_state_dict(state.get("perception"))
+        self._refresh_support()
 
 
 def _check_finite_pose(pose: np.ndarray, frame_index: int) -> None:
