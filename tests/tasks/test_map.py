@@ -95,13 +95,15 @@ def test_map_writes_the_run_output_contract(tiny_run: Path) -> None:
     assert metrics["machine"]["device"] == "cpu" and len(metrics["load_avg"]) == 3
     commit = metrics["code"]["commit"]  # null only outside a git checkout
     assert commit is None or (len(commit) == 40 and isinstance(metrics["code"]["dirty"], bool))
-    # A toy run (8 frames) learns the shape and the material most touches read: its map
-    # scores at least the majority map, and its shape beats the untrained field's. (What
-    # the untrained field paints is down to its initial weights: it may already be the
-    # majority material, so it is no floor to beat in matching.)
+    # A toy run (8 frames) learns the shape and the materials its touches read: its map
+    # scores at least the majority map in mean-class matching, and its shape beats the
+    # untrained field's. (What the untrained field paints is down to its initial weights: it
+    # may already be the majority material, so it is no floor to beat in matching. Plain
+    # matching is no floor either: after 8 frames the fill gives a press of plushie's small
+    # plastic patches the whole region up to the fabric presses, and plain matching weighs
+    # that against 96 % fabric.)
     majority = metrics["baseline_majority"]
-    assert metrics["matching_mean_class_pct"] >= majority["matching_mean_class_pct"] - 1e-6
-    assert metrics["matching_pct"] >= majority["matching_pct"] - 1.0
+    assert metrics["matching_mean_class_pct"] > majority["matching_mean_class_pct"]
     assert metrics["fscore_5mm"] > metrics["baseline"]["fscore_5mm"]
     assert metrics["classifier_accuracy"]["overall"] == pytest.approx(1.0)  # the oracle
 
