@@ -114,6 +114,7 @@ def compared(key: str, flat: dict[str, Any] | None = None) -> bool:
 # came with onnxruntime: runs before it ran them in torch. classifier.edge_min_confidence
 # came with null (off); the default became 0.99. classifier.edge_long_streak_frames came
 # with 0 (off). classifier.edge_extent came with whole (the label covers the imprint).
+# mapping.mapper.fill_m came with 0.01: runs before it read the material branch alone.
 ADDED_SINCE: dict[str, tuple[str, Any]] = {
     "classifier.patch_probe": ("classifier.max_patches", 0),
     "mapping.tracker.max_points_per_finger": ("mapping.tracker.max_points_per_source", 1000),
@@ -123,6 +124,7 @@ ADDED_SINCE: dict[str, tuple[str, Any]] = {
     "classifier.edge_min_confidence": ("classifier.min_confidence", None),
     "classifier.edge_long_streak_frames": ("classifier.edge_streak_frames", 0),
     "classifier.edge_extent": ("classifier.max_edge_share", "whole"),
+    "mapping.mapper.fill_m": ("mapping.mapper.material_weight", None),
     "mapping.mapper.tactile_depth.cpu_runtime": (
         "mapping.mapper.tactile_depth.min_contact_px",
         "torch",

@@ -245,8 +245,14 @@ def table_runs(sources: Sequence[Source]) -> list[Run]:
     """The runs of the object, perception and settings tables: all but those of a section
     of their own, and default-config repeats: a run of an object, seed and oracles that an
     earlier run on the page already gives at today's defaults (e.g. the baseline a live-view
-    source reruns beside its view) would count that seed twice."""
-    own = {id(r) for s in sources for r in own_section_runs(s)}
+    source reruns beside its view) would count that seed twice. A policy sweep's scripted
+    runs at today's defaults are default runs too: they join the tables as well."""
+    own = {
+        id(r)
+        for s in sources
+        for r in own_section_runs(s)
+        if not (is_policy_run(r) and not r.setting)
+    }
     seen, out = set(), []
     for run in (r for s in sources for r in s.runs if id(r) not in own):
         key = (run.object, run.seed, oracles_of(run)[0])

@@ -206,3 +206,26 @@ def test_runs_before_the_edge_min_confidence_setting_read_as_run_without_it() ->
     assert drift(before, {}, today) == {"classifier.edge_min_confidence": (None, 0.99)}
     now = {"classifier": {"min_confidence": 0.8, "edge_min_confidence": 0.99}}
     assert drift(now, {}, today) == {}
+
+
+def test_a_run_from_before_the_fill_reads_as_the_branch_alone() -> None:
+    mapper = {"material_weight": 0.1}
+    today = {"mapping.mapper.material_weight": 0.1, "mapping.mapper.fill_m": 0.01}
+    assert drift({"mapping": {"mapper": mapper}}, {}, today) == {
+        "mapping.mapper.fill_m": (None, 0.01)
+    }
+
+
+def test_a_policy_sweeps_scripted_runs_at_the_defaults_join_the_object_table(
+    tmp_path: Path,
+) -> None:
+    today = _recorded("patchwork")
+    sweep = tmp_path / "multirun" / "policies"
+    for k, policy in enumerate(("scripted", "active")):
+        overrides = ["object=patchwork", "seed=0", f"sensor.policy={policy}"]
+        _job(sweep, str(k), overrides, today, 90.0 + k)
+    page = generate(tmp_path, sweep)
+    # the scripted run is a default run: in the table beside its active-touch section
+    assert cells(section(page, "Multi-material objects"), "`patchwork`")[2:4] == ["0", "90.0"]
+    assert "sensor.policy=active" not in section(page, "Multi-material objects")
+    assert cells(section(page, "Active touch"), "object=patchwork")[3] == "90.0"
