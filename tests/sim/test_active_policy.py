@@ -115,15 +115,22 @@ def test_a_starved_planner_regrasps_and_the_rig_goes_on() -> None:
     assert rig.scene.warning_count == 0
 
 
-def test_a_hotspot_beyond_the_turns_reach_starts_a_regrasp_soon() -> None:
-    # Only the pole of the axis the object turns about first is uncertain: the turn never
-    # brings it to the fingers, so the planner regrasps at its first advised contact.
+def _heights_along_the_first_axis() -> tuple[np.ndarray, np.ndarray]:
+    """The test sphere's vertices (object frame) and their heights at t=0 along the axis the
+    object first turns about."""
     sphere = two_material_sphere()
     surface = np.asarray(sphere.mesh.vertices)
     probe = SimRig(sphere, seed=0, **MOTION)
     probe.open()
     pose, axis = probe.trajectory.pose(0.0), probe.trajectory.segment_axis(0)
-    pole = int(np.argmax((surface @ pose[:3, :3].T) @ axis))
+    return surface, (surface @ pose[:3, :3].T) @ axis
+
+
+def test_a_hotspot_beyond_the_turns_reach_starts_a_regrasp_soon() -> None:
+    # Only the pole of the axis the object turns about first is uncertain: the turn never
+    # brings it to the fingers, so the planner regrasps at its first advised contact.
+    surface, height = _heights_along_the_first_axis()
+    pole = int(np.argmax(height))
     entropy = np.zeros(len(surface))
     entropy[pole] = 1.0
     advice = TouchAdvice(surface, entropy, surface, TouchScoreConfig(), 0)
@@ -170,12 +177,7 @@ def test_a_confirm_regrasp_brings_an_unconfirmed_reading_under_a_finger() -> Non
 def test_a_chosen_turn_brings_the_uncertain_cap_to_the_fingers() -> None:
     # Only the cap round the first axis' pole is uncertain: the gait's turn about that axis
     # never brings it to a finger in 4 s; turn=advice turns the object so that it does.
-    sphere = two_material_sphere()
-    surface = np.asarray(sphere.mesh.vertices)
-    probe = SimRig(sphere, seed=0, **MOTION)
-    probe.open()
-    pose, axis = probe.trajectory.pose(0.0), probe.trajectory.segment_axis(0)
-    height = (surface @ pose[:3, :3].T) @ axis
+    surface, height = _heights_along_the_first_axis()
     cap = (height > 0.8 * height.max()).astype(float)
     advice = TouchAdvice(surface, cap, surface, TouchScoreConfig(novelty_weight=0.0), 0)
     share = {}
