@@ -28,7 +28,8 @@ map is brought to the fingers. With `confirm_regrasp_after`, a regrasp is also d
 advice holds unconfirmed readings and no screened touch has come within `confirm_m` of one
 for that many new contacts in a row: that regrasp brings the most uncertain of them to the
 fingers instead (a part read once is left out of the map until a second press backs it,
-and the turn the object is in may never bring it back).
+and the turn the object is in may never bring it back). With `turn=advice` the planner also
+chooses which way the object turns (TurnChooser, sim/turn_choice.py).
 """
 
 from __future__ import annotations
@@ -241,7 +242,7 @@ class TouchPlanner:
         self.last_regrasp_s = -np.inf
         self.unreached = 0  # new contacts in a row that could confirm no unconfirmed reading
         self.aim: np.ndarray | None = None  # the point the next regrasp brings to the fingers
-        self.due_reason = ""  # why the latest regrasp was due: starved, away or confirm
+        self.due_reason = ""  # why the latest regrasp was due: starved, away, confirm or turn
         self.choices: list[tuple[float, int, float]] = []  # (touch-down s, advice frame, score)
         c = self.config
         self.turns = (
