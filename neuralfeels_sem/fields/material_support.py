@@ -30,6 +30,8 @@ from torch import Tensor
 
 FADE_M = 0.02  # the fill's confidence falls by a factor e every this far past fill_m
 VOXEL_M = 0.003  # the trained points are thinned to one per cell of this size
+CELL_OFFSET = 1 << 20  # cell indices shifted to be non-negative (to +-3 km at 3 mm cells)
+CELL_SPAN = 1 << 21  # and packed three to an int64 key
 
 
 class MaterialSupport:
@@ -81,17 +83,20 @@ class MaterialSupport:
 
 
 def _thin(points: np.ndarray, labels: np.ndarray, num_classes: int) -> tuple:
-    """One point per VOXEL_M cell (the mean of its points), labelled by most of them."""
+    """One point per VOXEL_M cell (the mean of its points), labelled by most of them.
+
+    Cells are keyed by one integer each (in the order of their (x, y, z) indices), so the
+    grouping is a 1-D sort: the advice of an active run rebuilds this every frame."""
     if not len(points):
         return points, labels
-    cells = np.floor(points / VOXEL_M).astype(np.int64)
-    _, cell, counts = np.unique(cells, axis=0, return_inverse=True, return_counts=True)
+    cells = np.floor(points / VOXEL_M).astype(np.int64) + CELL_OFFSET
+    key = (cells[:, 0] * CELL_SPAN + cells[:, 1]) * CELL_SPAN + cells[:, 2]
+    _, cell, counts = np.unique(key, return_inverse=True, return_counts=True)
     cell = cell.reshape(-1)
-    centre = np.zeros((len(counts), 3))
-    np.add.at(centre, cell, points)
-    votes = np.zeros((len(counts), num_classes), np.int64)
-    np.add.at(votes, (cell, labels), 1)
-    return centre / counts[:, None], votes.argmax(axis=1)
+    n = len(counts)
+    centre = np.stack([np.bincount(cell, points[:, k], n) for k in range(3)], axis=1)
+    votes = np.bincount(cell * num_classes + labels, minlength=n * num_classes)
+    return centre / counts[:, None], votes.reshape(n, num_classes).argmax(axis=1)
 
 
 def current_support(
