@@ -234,25 +234,21 @@ def perception_section(runs: Sequence[Run]) -> list[str]:
 def own_section_runs(source: Source) -> list[Run]:
     """Tracked runs (with their `pose=gt` partners), active-touch runs, resume pairs and
     runs on generated objects or scanned meshes with drawn layouts: they have sections of
-    their own, not the object or settings tables."""
+    their own, not the object or settings tables. A policy sweep's scripted runs at today's
+    defaults are default runs: they are in the tables too (and in the active-touch section)."""
     tracked, partners = pose_runs(source)
     resumed = [r for pair in resume_pairs(source) for r in pair]
-    own = [r for r in source.runs if is_policy_run(r) or is_generated(r) or is_scanned(r)]
-    return tracked + partners + resumed + own
+    policy = [r for r in source.runs if is_policy_run(r) and r.setting]
+    own = [r for r in source.runs if is_generated(r) or is_scanned(r)]
+    return tracked + partners + resumed + policy + own
 
 
 def table_runs(sources: Sequence[Source]) -> list[Run]:
     """The runs of the object, perception and settings tables: all but those of a section
     of their own, and default-config repeats: a run of an object, seed and oracles that an
     earlier run on the page already gives at today's defaults (e.g. the baseline a live-view
-    source reruns beside its view) would count that seed twice. A policy sweep's scripted
-    runs at today's defaults are default runs too: they join the tables as well."""
-    own = {
-        id(r)
-        for s in sources
-        for r in own_section_runs(s)
-        if not (is_policy_run(r) and not r.setting)
-    }
+    source reruns beside its view) would count that seed twice."""
+    own = {id(r) for s in sources for r in own_section_runs(s)}
     seen, out = set(), []
     for run in (r for s in sources for r in s.runs if id(r) not in own):
         key = (run.object, run.seed, oracles_of(run)[0])

@@ -169,9 +169,8 @@ INTRO = [
     f"time at which its mean-class curve first reached {TARGET_PCT:.0f} % (- where it never did",
     "in the run), the share of its touches the classifier labelled (the rest abstained),",
     "and the regrasps the active run made (`touch_plan.regrasps` in its",
-    "`touch_suggestions.json`, chosen turns among them; n/a where the file is absent). The",
-    "mean rows pool the seeds",
-    "where both policies ran.",
+    "`touch_suggestions.json`, chosen turns among them; n/a where the file is absent).",
+    "The mean rows pool the seeds where both policies ran.",
 ]
 
 
