@@ -20,7 +20,7 @@ from pathlib import Path
 import torch
 
 from neuralfeels_sem.core.errors import ConfigError, DataError
-from neuralfeels_sem.mapping.checkpoint_codec import INIT_KEY, compress, decode, take
+from neuralfeels_sem.mapping.checkpoint_codec import INIT_KEY, compress, decode, prepare, take
 from neuralfeels_sem.mapping.field_init import adopt_init_state
 from neuralfeels_sem.mapping.mapper import OnlineMapper
 from neuralfeels_sem.mapping.provenance import Provenance, differing_settings
@@ -55,6 +55,11 @@ def save_checkpoint(
     write_checkpoint(
         path, take_checkpoint(mapper, frame_index, extra, model_config, provenance, storage)
     )
+
+
+def prepare_checkpoints(mapper: OnlineMapper) -> None:
+    """Do now the one-off work of the first `take_checkpoint` (checkpoint_codec.prepare)."""
+    prepare(mapper.field)
 
 
 def take_checkpoint(

@@ -8,14 +8,13 @@ mapped, in order, as by a sequential loop; at realtime the frames come at the se
 mapper takes the newest one, drops any due more than `max_lag_s` ago and counts them (pace.py), and
 runs single steps while no new frame has come. Every `every_k_frames` frames (and on the last) the
 field is scored and every len/`progression_snapshots` frames a progression snapshot is written, on a
-copy of the field by a worker thread (background_eval.py); every `checkpoint_every` frames the
-mapper's state is copied here, between steps, and written by another worker (checkpoint_writer.py),
-so the mapper's thread only pays for the copies. A run resumed from a checkpoint skips the frames it
-already holds and continues where it stopped, with the scorer's curve, the pose source's state and
-the earlier segments' frame counts and wall times restored. SIGINT or SIGTERM stops the loop after
-the frame in progress (the result is then marked partial); a producer that fails ends the loop the
-same way and `failure` holds its error. At the end: the final checkpoint, the final scores and the
-coloured mesh. Every file is written atomically.
+copy of the field by a worker thread (background_eval.py); every `checkpoint_every` frames (later
+while the last write runs) the mapper's state is copied here and written by another worker
+(checkpoint_writer.py). A resumed run skips the frames its checkpoint holds and continues where it
+stopped, with the scorer's curve, the pose source's state and the earlier segments' frame counts
+and wall times restored. SIGINT or SIGTERM stops the loop after the frame in progress (the result
+is then partial); a failed producer ends it the same way and `failure` holds its error. At the end:
+the final checkpoint, the final scores and the coloured mesh. Every file is written atomically.
 """
 
 from __future__ import annotations
@@ -32,7 +31,7 @@ from tqdm import tqdm
 from neuralfeels_sem.core.errors import NoDataError
 from neuralfeels_sem.core.frame import Frame
 from neuralfeels_sem.eval.run_scorer import RunScorer
-from neuralfeels_sem.mapping.checkpoint import load_checkpoint, take_checkpoint
+from neuralfeels_sem.mapping.checkpoint import load_checkpoint, prepare_checkpoints, take_checkpoint
 from neuralfeels_sem.mapping.mapper import OnlineMapper
 from neuralfeels_sem.mapping.pose_source import PoseSource
 from neuralfeels_sem.mapping.provenance import Provenance
@@ -115,6 +114,7 @@ class MappingSession:
         self.writer = CheckpointWriter(self.checkpoint_path, self.settings.nice_at(sensor.pace))
         self.classifier.open()  # loaded before the clock starts (on a GPU: graph captures),
         self.mapper.points.load_models()  # in the order the first frame would load them
+        prepare_checkpoints(self.mapper)  # and what the first checkpoint would draw
         try:
             with self.stop:
                 wall_start, cpu_start = time.perf_counter(), time.thread_time()
@@ -306,7 +306,8 @@ class MappingSession:
             )
         every = self.settings.checkpoint_every
         # Realtime maps a frame now and then: a checkpoint every `every` frames mapped.
-        if every and (self.segment.frames % every == 0 if realtime else crossed(every)):
+        reached = bool(every) and (self.segment.frames % every == 0 if realtime else crossed(every))
+        if self.writer.due(reached):
             self._drain_background(bar)  # the checkpoint records the scorer's curves
             self._checkpoint()
 

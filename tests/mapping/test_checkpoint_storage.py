@@ -15,7 +15,11 @@ from neuralfeels_sem.fields.semantic_field import SemanticFieldConfig
 from neuralfeels_sem.mapping import checkpoint_codec as codec
 from neuralfeels_sem.mapping import field_init
 from neuralfeels_sem.mapping.byte_planes import pack_planes, packed_bytes, unpack_planes
-from neuralfeels_sem.mapping.checkpoint import load_checkpoint, save_checkpoint
+from neuralfeels_sem.mapping.checkpoint import (
+    load_checkpoint,
+    prepare_checkpoints,
+    save_checkpoint,
+)
 from neuralfeels_sem.mapping.field_init import build_field
 from neuralfeels_sem.mapping.mapper import MapperConfig, OnlineMapper
 from neuralfeels_sem.perception.tactile_depth import TactileDepthConfig
@@ -244,6 +248,29 @@ def test_the_initial_rows_are_drawn_once_per_field_and_still_checked(tmp_path, m
     restored = replayable_mapper(init_seed=7)
     load_checkpoint(path, restored)
     assert torch.equal(_table_state(restored)[0], _table_state(mapper)[0])
+
+
+def test_prepared_initial_rows_are_not_drawn_again_and_change_no_byte(tmp_path, monkeypatch):
+    """prepare_checkpoints draws at the start what the first checkpoint would (a run does it
+    before its clock starts): the checkpoint then draws nothing and is the same file, and
+    the caller's random stream is left as it was."""
+    drawn, paths = [], {}
+    real_initial_state = field_init.initial_state
+    monkeypatch.setattr(
+        field_init, "initial_state", lambda *a: drawn.append(1) or real_initial_state(*a)
+    )
+    for prepared in (False, True):
+        mapper = replayable_mapper()
+        if prepared:
+            before = torch.get_rng_state()
+            prepare_checkpoints(mapper)
+            assert torch.equal(torch.get_rng_state(), before)
+        feed(mapper, FRAMES[:2])
+        draws = len(drawn)
+        paths[prepared] = tmp_path / f"prepared_{prepared}.pt"
+        save_checkpoint(paths[prepared], mapper, frame_index=1)
+        assert len(drawn) - draws == (0 if prepared else 1)
+    assert paths[False].read_bytes() == paths[True].read_bytes()
 
 
 def test_moment_codes_keep_tiny_moments_that_float16_loses() -> None:

@@ -66,3 +66,33 @@ def test_a_failed_write_is_raised_on_the_mapper_side(tmp_path) -> None:
     with pytest.raises(OSError):
         writer.wait()
     writer.close()  # the error was raised once; the worker stops cleanly
+
+
+def test_a_checkpoint_due_while_a_write_runs_waits_for_it_not_the_mapper(
+    tmp_path, monkeypatch
+) -> None:
+    """`due` says take one once a checkpoint's frame has been reached and no write runs; a
+    frame reached during a write keeps it due until the write ends, a submit clears it."""
+    release = threading.Event()
+    write = writer_module.write_checkpoint
+
+    def slow_write(path, taken) -> None:
+        assert release.wait(timeout=60)
+        write(path, taken)
+
+    monkeypatch.setattr(writer_module, "write_checkpoint", slow_write)
+    mapper = make_mapper()
+    feed(mapper, FRAMES[:2])
+    writer = CheckpointWriter(tmp_path / "checkpoint.pt")
+    assert not writer.due(False) and writer.due(True)
+    writer.submit(take_checkpoint(mapper, 1))
+    assert writer.busy and not writer.due(False)
+    assert not writer.due(True)  # reached, but the write runs
+    release.set()
+    writer.wait()
+    assert not writer.busy and writer.due(False)  # still due from the frame reached
+    writer.submit(take_checkpoint(mapper, 1))
+    writer.wait()
+    assert not writer.due(False)
+    writer.close()
+    assert load_checkpoint(tmp_path / "checkpoint.pt", make_mapper())["frame_index"] == 1

@@ -74,7 +74,8 @@ def _run(args: list[str]) -> subprocess.CompletedProcess:
 
 
 def _wait_for_checkpoints(run_dir: Path, count: int, process: subprocess.Popen) -> None:
-    """Until checkpoint.pt has been (re)written `count` times, i.e. after frame count - 1."""
+    """Until checkpoint.pt has been (re)written `count` times: after frame count - 1, or
+    later where a write outlasted a frame (the next checkpoint then waits for it)."""
     path, seen, last = run_dir / "checkpoint.pt", 0, None
     deadline = time.monotonic() + 300
     while seen < count:
