@@ -38,6 +38,7 @@ class MappingConfig:
     # 10 s of the sim rig's 10 Hz stream. Each write copies the updated rows on the mapper's
     # thread and packs ~100 MB of table and moments on another, about 1.5 CPU-seconds in
     # all on the 2-core CPU: at 50 frames, 7 % of a default run's CPU samples (py-spy).
+    # One due while the last write runs is taken when it ends (CheckpointWriter.due).
     checkpoint_every: int = 100
     resume: str | None = None  # a checkpoint.pt to continue a killed run from
     # At sensor.pace=realtime: a frame due longer ago than this when the mapper could take
