@@ -91,23 +91,27 @@ def gain(scripted: Run | None, active: Run | None) -> float | None:
 
 
 def mean_row(label: str, rows: Sequence[tuple]) -> list[str]:
-    """Means over the seeds where both policies ran, and how often each reached the target."""
+    """Means over the seeds where both policies ran, and how often each reached the target;
+    where no seed has both (a sweep of one policy), each policy's means over its own runs."""
     both = [(s, a) for _, _, s, _, a in rows if s is not None and a is not None]
     scripted, active = [s for s, _ in both], [a for _, a in both]
+    if not both:
+        scripted = [s for _, _, s, _, _ in rows if s is not None]
+        active = [a for *_, a in rows if a is not None]
     reached = [sum(time_to_target(r) is not None for r in runs) for runs in (scripted, active)]
-    floor, _ = majority_cells(active)
+    floor, _ = majority_cells(active or scripted)
     return [
         label,
         "**mean**",
         floor,
         fmt(mean(values_of(scripted, "matching_mean_class_pct"))),
-        f"{reached[0]} of {len(both)} reached",
+        f"{reached[0]} of {len(scripted)} reached",
         fmt(mean([c for r in scripted if (c := coverage_pct(r)) is not None])),
         fmt(mean(values_of(active, "matching_mean_class_pct"))),
-        f"{reached[1]} of {len(both)} reached",
+        f"{reached[1]} of {len(active)} reached",
         fmt(mean([c for r in active if (c := coverage_pct(r)) is not None])),
         fmt(mean([g for s, a in both if (g := gain(s, a)) is not None]), sign=True),
-        count_cell([regrasps(a) for _, a in both]),
+        count_cell([regrasps(a) for a in active]),
     ]
 
 

@@ -191,6 +191,26 @@ def test_an_active_run_without_a_scripted_partner_takes_the_default_run(
     ]
 
 
+def test_a_sweep_of_the_active_policy_alone_gets_its_own_means(
+    tmp_path: Path, default_sweep: Path
+) -> None:
+    """No scripted run of its setting anywhere: the mean row gives the active runs' own
+    figures instead of a row of n/a."""
+    sweep = tmp_path / "multirun" / "active_16s"
+    for seed, (value, values) in enumerate([(97.0, [40.0, 97.0, 97.0]), (89.0, [40, 80, 89])]):
+        metrics = run_metrics(value, 95.0, 50.0, 54.0, "plastic", oracles=["object_pose"])
+        metrics["matching_mean_class_curve"] = curve(values)
+        overrides = ["object=patched_toy", f"seed={seed}", "sensor.policy=active"]
+        write_job(sweep, str(seed), [*overrides, "sensor.duration_s=16"], metrics)
+    active = section(generate(tmp_path, default_sweep, sweep), "Active touch")
+    rows = {tuple(r[:2]): r[2:] for r in table_rows(active.split("active_16s", 1)[1])}
+    assert rows[("object=patched_toy", "1")][1:3] == ["n/a", "n/a"]
+    assert rows[("object=patched_toy", "**mean**")] == [
+        "50.0 (plastic)", "n/a", "0 of 0 reached", "n/a",
+        "93.0", "1 of 2 reached", "75.0", "n/a", "n/a",
+    ]  # fmt: skip
+
+
 def test_an_active_run_of_a_setting_the_gait_never_reads_takes_the_default_run(
     tmp_path: Path, default_sweep: Path
 ) -> None:
