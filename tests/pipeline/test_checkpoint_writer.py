@@ -13,6 +13,19 @@ from neuralfeels_sem.pipeline.checkpoint_writer import CheckpointWriter
 from tests.mapping.test_checkpoint import FRAMES, feed, make_mapper
 
 
+def hold_writes(monkeypatch) -> threading.Event:
+    """The writer's writes wait until the returned event is set."""
+    release = threading.Event()
+    write = writer_module.write_checkpoint
+
+    def write_later(path, taken) -> None:
+        assert release.wait(timeout=60)
+        write(path, taken)
+
+    monkeypatch.setattr(writer_module, "write_checkpoint", write_later)
+    return release
+
+
 @pytest.mark.parametrize("storage", ["exact", "compact"])
 def test_a_checkpoint_written_behind_holds_the_state_it_was_taken_with(
     tmp_path, monkeypatch, storage: str
@@ -21,14 +34,7 @@ def test_a_checkpoint_written_behind_holds_the_state_it_was_taken_with(
     continues the run of the moment it was taken (exactly, when stored exact)."""
     reference = make_mapper()
     feed(reference, FRAMES)
-    trained_on = threading.Event()
-    write = writer_module.write_checkpoint
-
-    def write_later(path, taken) -> None:
-        assert trained_on.wait(timeout=60)
-        write(path, taken)
-
-    monkeypatch.setattr(writer_module, "write_checkpoint", write_later)
+    trained_on = hold_writes(monkeypatch)
     mapper = make_mapper()
     feed(mapper, FRAMES[:3])
     path = tmp_path / "checkpoint.pt"
@@ -73,14 +79,7 @@ def test_a_checkpoint_due_while_a_write_runs_waits_for_it_not_the_mapper(
 ) -> None:
     """`due` says take one once a checkpoint's frame has been reached and no write runs; a
     frame reached during a write keeps it due until the write ends, a submit clears it."""
-    release = threading.Event()
-    write = writer_module.write_checkpoint
-
-    def slow_write(path, taken) -> None:
-        assert release.wait(timeout=60)
-        write(path, taken)
-
-    monkeypatch.setattr(writer_module, "write_checkpoint", slow_write)
+    release = hold_writes(monkeypatch)
     mapper = make_mapper()
     feed(mapper, FRAMES[:2])
     writer = CheckpointWriter(tmp_path / "checkpoint.pt")
