@@ -8,7 +8,6 @@ import torch
 from neuralfeels_sem.mapping.keyframes import KeyframeBuffer
 from neuralfeels_sem.mapping.label_vote import (
     LabelVote,
-    _nearest_per_press,
     outvoted_touches,
     press_events,
     steady_presses,
@@ -304,24 +303,50 @@ def test_presses_count_mapped_frames_when_realtime_pacing_skips_some() -> None:
     assert restored.num_outvoted == 4  # frames 16 and 25 are ranks 2 and 3: one press
 
 
-def test_presses_within_a_radius_from_their_nearest_touch_equal_the_dense_count() -> None:
-    """Presses within r of a touch, counted from each press's nearest touch, equal those a
-    (T, T) @ (T, presses) membership product counts: other presses within the radius, and
-    those agreeing, at two radii."""
+def dense_outvoted(centroids, labels, radius, min_neighbours, min_agreement, min_support,
+                   events, support_radius, steady) -> torch.Tensor:  # fmt: skip
+    """The vote as (T, T) membership products over every pair: the reference the
+    neighbourhood count must equal."""
+    distances = torch.cdist(centroids.double(), centroids.double())
+    members = torch.nn.functional.one_hot(torch.unique(events, return_inverse=True)[1]).double()
+    other = events[None, :] != events[:, None]
+    same = labels[None, :] == labels[:, None]
+
+    def presses(mask: torch.Tensor) -> torch.Tensor:
+        return ((mask.double() @ members) > 0).sum(1)
+
+    neighbours, agree = (
+        presses(other & (distances < radius)),
+        presses(other & same & (distances < radius)),
+    )
+    outvoted = (neighbours >= min_neighbours) & (agree < min_agreement * neighbours.float())
+    if min_support > 0:
+        support = radius if support_radius is None else support_radius
+        unsupported = presses(other & same & (distances < support)) < min_support
+        outvoted |= unsupported if steady is None else unsupported & ~steady
+    return outvoted
+
+
+@pytest.mark.parametrize(
+    "min_support, support_radius", [(0, None), (1, None), (1, 0.04), (2, 0.04)]
+)
+def test_the_vote_over_neighbourhoods_equals_the_dense_count(min_support, support_radius) -> None:
+    """Counting other presses only among the pairs within the radii (KD-tree) outvotes the
+    same touches as counting them over every pair, for clustered presses with several
+    frames each, with and without steady presses, at two radii and two agreement shares."""
     gen = torch.Generator().manual_seed(3)
-    centroids = torch.rand(300, 3, generator=gen) * 0.05
-    labels = torch.randint(0, 3, (300,), generator=gen)
-    events = torch.sort(torch.randint(0, 90, (300,), generator=gen)).values
-    distances = torch.cdist(centroids, centroids)
-    nearest, agreeing = _nearest_per_press(distances, labels, events)
-    members = torch.nn.functional.one_hot(torch.unique(events, return_inverse=True)[1]).float()
-    for radius in (0.005, 0.02):
-        near = (distances < radius) & (events[None, :] != events[:, None])
-        agree = near & (labels[None, :] == labels[:, None])
-        dense = [((m.float() @ members) > 0).sum(1) for m in (near, agree)]
-        assert dense[0].sum() > 300  # several presses near most touches
-        assert torch.equal((nearest < radius).sum(1), dense[0])
-        assert torch.equal((agreeing < radius).sum(1), dense[1])
+    centres = torch.rand(120, 3, generator=gen) * 0.06
+    events = torch.sort(torch.randint(0, 120, (400,), generator=gen)).values
+    centroids = centres[events] + 0.003 * torch.randn(400, 3, generator=gen)
+    labels = torch.randint(0, 3, (400,), generator=gen)
+    steady = torch.rand(400, generator=gen) < 0.5
+    outvoted_any = 0
+    for radius, agreement, steady_or_none in ((0.005, 0.25, None), (0.02, 1 / 3, steady)):
+        args = (centroids, labels, radius, 3, agreement, min_support, events, support_radius)
+        got = outvoted_touches(*args, steady_or_none)
+        assert torch.equal(got, dense_outvoted(*args, steady_or_none)), radius
+        outvoted_any += int(got.sum())
+    assert 0 < outvoted_any < 800  # the vote leaves some out, not all
 
 
 def test_touch_tensors_joined_as_touches_come_equal_joining_them_all() -> None:
