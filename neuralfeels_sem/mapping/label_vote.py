@@ -146,11 +146,20 @@ def _presses_near(
     )
 
 
+# Touches x presses up to this many cells are counted in a boolean table (a cell per pair
+# of touch and press: no sort); larger runs sort the pairs instead.
+TABLE_CELLS = 50_000_000
+
+
 def _count_presses(i: np.ndarray, j: np.ndarray, press: np.ndarray, n: int) -> np.ndarray:
     """(n,) how many distinct presses the partners j of each touch i belong to."""
     width = int(press.max()) + 1 if len(press) else 1
-    pairs = np.unique(i * width + press[j])  # one entry per (touch, partner's press)
-    return np.bincount(pairs // width, minlength=n)
+    key = i * width + press[j]  # one entry per (touch, partner's press), repeated
+    if n * width <= TABLE_CELLS:
+        table = np.zeros(n * width, dtype=bool)
+        table[key] = True
+        return table.reshape(n, width).sum(axis=1)
+    return np.bincount(np.unique(key) // width, minlength=n)
 
 
 def _supported(

@@ -264,7 +264,7 @@ class TouchBuffer:
 
     def _touch_of_point(self, device: torch.device) -> torch.Tensor:
         """The touch index of every stored point, in storage order."""
-        sizes = torch.tensor([len(lab) for lab in self._labels], device=device)
+        sizes = torch.tensor(self._starts, device=device).diff()  # each touch's point count
         return torch.repeat_interleave(torch.arange(len(sizes), device=device), sizes)
 
     def _items_dropped(self, item_touch: torch.Tensor, item_label: torch.Tensor) -> torch.Tensor:
