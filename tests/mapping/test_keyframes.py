@@ -5,6 +5,7 @@ from __future__ import annotations
 import pytest
 import torch
 
+from neuralfeels_sem.mapping import label_vote
 from neuralfeels_sem.mapping.keyframes import KeyframeBuffer
 from neuralfeels_sem.mapping.label_vote import (
     LabelVote,
@@ -327,13 +328,18 @@ def dense_outvoted(centroids, labels, radius, min_neighbours, min_agreement, min
     return outvoted
 
 
+@pytest.mark.parametrize("table_cells", [label_vote.TABLE_CELLS, 0])
 @pytest.mark.parametrize(
     "min_support, support_radius", [(0, None), (1, None), (1, 0.04), (2, 0.04)]
 )
-def test_the_vote_over_neighbourhoods_equals_the_dense_count(min_support, support_radius) -> None:
+def test_the_vote_over_neighbourhoods_equals_the_dense_count(
+    min_support, support_radius, table_cells, monkeypatch
+) -> None:
     """Counting other presses only among the pairs within the radii (KD-tree) outvotes the
     same touches as counting them over every pair, for clustered presses with several
-    frames each, with and without steady presses, at two radii and two agreement shares."""
+    frames each, with and without steady presses, at two radii and two agreement shares;
+    presses counted in the boolean table and by sorting (a table over its size)."""
+    monkeypatch.setattr(label_vote, "TABLE_CELLS", table_cells)
     gen = torch.Generator().manual_seed(3)
     centres = torch.rand(120, 3, generator=gen) * 0.06
     events = torch.sort(torch.randint(0, 120, (400,), generator=gen)).values
