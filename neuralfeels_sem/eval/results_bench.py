@@ -138,6 +138,8 @@ FIGURES: tuple[tuple[str, str, str, str], ...] = (
     ),
     ("field", "cuda_paper_log2_24_sparse.peak_gpu_mb", "GPU memory, 2^24 step", "MB"),
     ("mapper", "steps_per_s", "mapper step (default config)", "steps/s"),
+    ("label_vote", "vote_ms_at_1000", "label vote over 1000 touch readings", "ms"),
+    ("label_vote", "vote_ms_at_3000", "label vote over 3000 touch readings", "ms"),
     ("mapper", "steps_per_s_by_threads.1.steps_per_s", "mapper step, 1 thread", "steps/s"),
     ("mapper", "steps_per_s_by_threads.2.steps_per_s", "mapper step, 2 threads", "steps/s"),
     ("mapper", "steps_per_s_by_threads.1.step_cpu_ms", "mapper step CPU, 1 thread", "ms"),
