@@ -105,14 +105,19 @@ def mean_row(label: str, rows: Sequence[tuple]) -> list[str]:
         "**mean**",
         floor,
         fmt(mean(values_of(scripted, "matching_mean_class_pct"))),
-        f"{reached[0]} of {len(scripted)} reached",
+        reached_cell(reached[0], len(scripted)),
         fmt(mean([c for r in scripted if (c := coverage_pct(r)) is not None])),
         fmt(mean(values_of(active, "matching_mean_class_pct"))),
-        f"{reached[1]} of {len(active)} reached",
+        reached_cell(reached[1], len(active)),
         fmt(mean([c for r in active if (c := coverage_pct(r)) is not None])),
         fmt(mean([g for s, a in both if (g := gain(s, a)) is not None]), sign=True),
         count_cell([regrasps(a) for a in active]),
     ]
+
+
+def reached_cell(reached: int, runs: int) -> str:
+    """How many of a policy's runs reached the target (n/a: that policy did not run)."""
+    return f"{reached} of {runs} reached" if runs else "n/a"
 
 
 def count_cell(counts: Sequence[int | None]) -> str:
