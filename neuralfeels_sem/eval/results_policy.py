@@ -179,7 +179,8 @@ INTRO = [
     "in the run), the share of its touches the classifier labelled (the rest abstained),",
     "and the regrasps the active run made (`touch_plan.regrasps` in its",
     "`touch_suggestions.json`, chosen turns among them; n/a where the file is absent).",
-    "The mean rows pool the seeds where both policies ran.",
+    "The mean rows pool the seeds where both policies ran (in a sweep of one policy, its",
+    "own runs).",
 ]
 
 

@@ -5,12 +5,16 @@ from __future__ import annotations
 import torch
 
 from neuralfeels_sem.bench import bench_label_vote
+from neuralfeels_sem.mapping.label_vote import press_events
 
 
 def test_the_presses_are_clustered_frames_on_the_sphere() -> None:
-    centroids, labels, events, steady = bench_label_vote.clustered_presses(301)
-    assert centroids.shape == (301, 3) and labels.shape == events.shape == steady.shape == (301,)
-    assert torch.equal(torch.bincount(events)[:-1], torch.full((100,), 3))  # 3 frames a press
+    centroids, labels, fingers, frames = bench_label_vote.clustered_presses(301)
+    assert centroids.shape == (301, 3) and labels.shape == (301,)
+    assert len(fingers) == len(frames) == 301 and frames == sorted(frames)
+    events = press_events(fingers, frames, gap=2)  # the vote's press chaining, as a run's
+    frames_per_press = torch.unique(events, return_counts=True)[1]
+    assert torch.equal(frames_per_press[:-1], torch.full((100,), 3))  # 3 frames a press
     radius = centroids.norm(dim=1)
     assert ((radius > 0.04) & (radius < 0.06)).all()
 
