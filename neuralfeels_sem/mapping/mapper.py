@@ -68,11 +68,12 @@ class MapperConfig:
     material_points: int = 256  # per step, from all labelled touches
     # uniform: every labelled point alike; balanced: each material the touches name gets an
     # equal share of the draws, so a small insert's few points train as often as the
-    # largest material's many (batch.py). balanced over-extends the rare materials on the
-    # generated development objects (docs/field_and_mapper.md#steps-per-frame); tempered:
-    # a material's share grows with its point count to material_temper_power (between the
-    # two: 1 is uniform, 0 balanced).
-    material_sampling: str = "uniform"
+    # largest material's many (batch.py); tempered: a material's share grows with its point
+    # count to material_temper_power (1 is uniform, 0 balanced). balanced over-extends the
+    # rare materials; tempered maps the generated development objects 92.3 % mean-class
+    # against 91.7 with uniform, the shipped ones 96.7 against 96.9
+    # (docs/field_and_mapper.md#steps-per-frame).
+    material_sampling: str = "tempered"
     material_temper_power: float = 0.5
     truncation: float = 0.005  # metres
     camera_free_range: float = 0.05  # metres in front of the surface
