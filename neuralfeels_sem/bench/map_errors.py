@@ -178,11 +178,26 @@ def nearest_press_truth(obj, matching: MatchingEvaluator, touches: TouchSet) -> 
     return nearest_press_map(matching, oracle)
 
 
+USED_POINT_FIGURES = (
+    "used_point_accuracy_pct",
+    "nearest_used_point_truth_mean_class_pct",
+    "nearest_right_point_mean_class_pct",
+    "used_points_ignored_pct",
+)
+
+
 def used_point_truth(obj, matching: MatchingEvaluator, touches: TouchSet) -> dict:
-    """Share of the contact points the material loss trained on whose label is their true
-    material, and the oracle map that gives each sample the true material of the nearest
-    such point (both None without such points in the scored regions)."""
-    out = {"used_point_accuracy_pct": None, "nearest_used_point_truth_mean_class_pct": None}
+    """How right the contact points the material loss trained on are, and what they map.
+
+    `used_point_accuracy_pct`: share of them in the scored regions whose label is their true
+    material; `nearest_used_point_truth_mean_class_pct`: the oracle map that gives each
+    sample the true material of the nearest such point; `nearest_right_point_mean_class_pct`:
+    the map of the nearest rightly labelled one (the wrong and the ignored ones left out:
+    beside `nearest_press_mean_class_pct`, what the wrong readings cost a map of these
+    presses); `used_points_ignored_pct`: share of all of them on ignored faces (seams, the
+    face the object rests on; the simulator gives those a texture of no material). All None
+    without such points in the scored regions."""
+    out = dict.fromkeys(USED_POINT_FIGURES)
     if not touches.points:
         return out
     used = [touches.used_labels_of(t) for t in range(len(touches.points))]
@@ -192,9 +207,14 @@ def used_point_truth(obj, matching: MatchingEvaluator, touches: TouchSet) -> dic
     scored = truth >= 0
     if not scored.any():
         return out
+    right = scored & (labels == truth)
     nearest_truth = matching.nearest_scores(points[scored], truth[scored])
     out["used_point_accuracy_pct"] = float(100.0 * np.mean(labels[scored] == truth[scored]))
     out["nearest_used_point_truth_mean_class_pct"] = nearest_truth["matching_mean_class_pct"]
+    if right.any():
+        nearest_right = matching.nearest_scores(points[right], labels[right])
+        out["nearest_right_point_mean_class_pct"] = nearest_right["matching_mean_class_pct"]
+    out["used_points_ignored_pct"] = float(100.0 * np.mean(~scored))
     return out
 
 
@@ -241,6 +261,7 @@ def main(argv: list[str] | None = None) -> None:
     )
     wrong = {k: sum(r["wrong_trained_points"][k] for r in rows) for k in WRONG_KINDS}
     print("wrongly labelled trained points, by their press:", wrong)
+    print("mean over runs:", mean_figures(rows))
     pooled = pool_audits([r["readings"] for r in rows])
     print(pooled_lines(pooled))
     if args.out is not None:
@@ -251,6 +272,16 @@ def main(argv: list[str] | None = None) -> None:
             "runs": rows,
         }
         args.out.write_text(json.dumps(record, indent=1))
+
+
+def mean_figures(rows: list[dict]) -> dict[str, float | None]:
+    """The runs' map and its nearest-point maps, averaged over the runs that have each."""
+    keys = ("matching_mean_class_pct", "nearest_press_mean_class_pct", *USED_POINT_FIGURES)
+    means = {}
+    for key in keys:
+        values = [r[key] for r in rows if r.get(key) is not None]
+        means[key] = round(float(np.mean(values)), 2) if values else None
+    return means
 
 
 def pooled_lines(pooled: dict) -> str:

@@ -6,7 +6,11 @@ from __future__ import annotations
 import numpy as np
 import pytest
 
-from neuralfeels_sem.bench.map_errors import used_point_truth, wrong_trained_points
+from neuralfeels_sem.bench.map_errors import (
+    USED_POINT_FIGURES,
+    used_point_truth,
+    wrong_trained_points,
+)
 from neuralfeels_sem.eval.error_sources import TouchSet
 from neuralfeels_sem.eval.matching import MatchingEvaluator
 from tests.eval.objects import RADIUS, two_material_sphere
@@ -39,7 +43,7 @@ def test_used_points_are_judged_by_their_truth_and_mapped_read_perfectly(sphere)
 
 def test_without_trained_points_the_figures_are_none(sphere) -> None:
     obj, matching = sphere
-    empty = {"used_point_accuracy_pct": None, "nearest_used_point_truth_mean_class_pct": None}
+    empty = dict.fromkeys(USED_POINT_FIGURES)
     assert used_point_truth(obj, matching, TouchSet([], [], [])) == empty
     unused = TouchSet([_press(1.0)], [PLASTIC], [False])
     assert used_point_truth(obj, matching, unused) == empty
@@ -115,3 +119,34 @@ def test_wrong_trained_points_are_told_apart_by_their_press(sphere) -> None:
         "misread": 32,
         "other": 1,
     }
+
+
+def test_the_right_points_map_leaves_out_wrong_and_ignored_points(sphere) -> None:
+    obj, matching = sphere
+    plastic, fabric = _press(+1.0), _press(-1.0)
+    # A fabric press read as plastic throughout: the plastic label wins the south too.
+    touches = TouchSet(
+        [plastic, fabric, _press(-1.0, x=0.5)],
+        [PLASTIC, FABRIC, PLASTIC],
+        [True, True, True],
+        used_point_labels=[np.full(32, PLASTIC), np.full(32, FABRIC), np.full(32, PLASTIC)],
+    )
+    got = used_point_truth(obj, matching, touches)
+    assert got["used_point_accuracy_pct"] == pytest.approx(100.0 * 64 / 96)
+    assert got["nearest_right_point_mean_class_pct"] == pytest.approx(100.0)
+    assert got["used_points_ignored_pct"] == pytest.approx(0.0)
+
+
+def test_points_on_ignored_faces_are_counted_apart(sphere) -> None:
+    obj, matching = sphere
+    ignored = np.flatnonzero(obj.face_labels < 0)  # the sphere's polar caps
+    seam = obj.mesh.triangles_center[ignored[:8]]
+    assert len(seam) == 8
+    touches = TouchSet(
+        [_press(+1.0), seam],
+        [PLASTIC, PLASTIC],
+        [True, True],
+        used_point_labels=[np.full(32, PLASTIC), np.full(len(seam), PLASTIC)],
+    )
+    got = used_point_truth(obj, matching, touches)
+    assert got["used_points_ignored_pct"] == pytest.approx(100.0 * len(seam) / (32 + len(seam)))
