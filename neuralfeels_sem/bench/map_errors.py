@@ -195,8 +195,8 @@ def used_point_truth(obj, matching: MatchingEvaluator, touches: TouchSet) -> dic
     the map of the nearest rightly labelled one (the wrong and the ignored ones left out:
     beside `nearest_press_mean_class_pct`, what the wrong readings cost a map of these
     presses); `used_points_ignored_pct`: share of all of them on ignored faces (seams, the
-    face the object rests on; the simulator gives those a texture of no material). All None
-    without such points in the scored regions."""
+    face the object rests on: unscored, but they train the map beside scored faces). All
+    None without such points in the scored regions."""
     out = dict.fromkeys(USED_POINT_FIGURES)
     if not touches.points:
         return out

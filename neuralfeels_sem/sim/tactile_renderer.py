@@ -35,6 +35,7 @@ from neuralfeels_sem.core.digit import (
 from neuralfeels_sem.core.geometry import Intrinsics, check_pose, invert_pose
 from neuralfeels_sem.objects.material_object import IGNORE, MaterialObject
 from neuralfeels_sem.sim.backgrounds import resolve_background
+from neuralfeels_sem.sim.felt_material import FeltMaterial
 from neuralfeels_sem.sim.gel_optics import (
     MAX_RELIEF_M,
     SOFT_REACH_M,
@@ -126,6 +127,7 @@ class DigitRenderer:
         self._noise_bank: np.ndarray | None = None
         self._materials(obj.class_names, seed, texture_scale, compliance)
         self._build_scene(obj)
+        self._felt = FeltMaterial(obj)  # ignored faces press as their nearest material
 
     def _materials(
         self,
@@ -241,12 +243,13 @@ class DigitRenderer:
         gt_material = np.where(contact, labels, IGNORE).astype(np.int16)
 
         change = np.zeros((DIGIT_HEIGHT, DIGIT_WIDTH, 3), np.float32)
+        object_T_sensor = invert_pose(world_T_object) @ world_T_sensor
+        felt = self._felt(labels, depth, hit, object_T_sensor)
         # Pixels the gel can feel: soft materials and texture relief reach past the surface.
-        reach = self._reach[np.where(labels == IGNORE, len(self._textures), labels)]
+        reach = self._reach[np.where(felt == IGNORE, len(self._textures), felt)]
         near = hit & (depth < reach)
         if near.any():
-            object_T_sensor = invert_pose(world_T_object) @ world_T_sensor
-            self._shade(change, depth, labels, near, object_T_sensor)
+            self._shade(change, depth, felt, near, object_T_sensor)
         truth = TactileRender(
             image=self.background_image, depth=gt_depth, contact_mask=contact, material=gt_material
         )

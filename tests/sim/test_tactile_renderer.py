@@ -142,6 +142,23 @@ def test_ignore_faces_are_in_contact_without_material(two_material: DigitRendere
     assert (out.material == IGNORE).all()
 
 
+def test_ignore_faces_press_as_the_nearest_labelled_material() -> None:
+    """Scoring ignores the sphere's cap; the gel feels it as the fabric round it."""
+    world_T_sensor = _press(np.eye(4), np.array([0.0, 0.0, -1.0]), 1e-3)  # inside the cap
+    outs = {}
+    for name, labels_fn in (
+        ("capped", lambda c: np.where(c[:, 2] < -0.02, IGNORE, 2)),
+        ("fabric", lambda c: np.full(len(c), 2)),
+        ("plastic", lambda c: np.full(len(c), 0)),
+    ):
+        renderer = DigitRenderer(_sphere(labels_fn), noise_std=0.0)
+        outs[name] = renderer.render(np.eye(4), world_T_sensor)
+        renderer.close()
+    assert (outs["capped"].material == IGNORE).all()  # the ground truth keeps it ignored
+    np.testing.assert_array_equal(outs["capped"].image, outs["fabric"].image)
+    assert np.abs(outs["capped"].image.astype(int) - outs["plastic"].image).max() > 10
+
+
 def test_penetration_beyond_the_gel_range_is_still_reported_as_contact(
     two_material: DigitRenderer,
 ) -> None:
