@@ -11,6 +11,7 @@ from neuralfeels_sem.core.limits import check_duration, check_rate
 from neuralfeels_sem.sensors.base import check_pace
 from neuralfeels_sem.sensors.sim.sim_sensor import POLICIES
 from neuralfeels_sem.sim.depth_noise import DEPTH_NOISE_MODELS, RealSenseNoiseConfig
+from neuralfeels_sem.sim.felt_material import check_ignored_faces
 from neuralfeels_sem.sim.touch_planner import TouchPlannerConfig
 
 
@@ -29,12 +30,17 @@ class SimTactileConfig:
     background: str | None = None  # null: procedural; or an empty DIGIT frame / a folder of them
     noise_std: float = 2.0  # grey levels
     texture_scale: float = 1.0  # 0 = smooth materials
+    # What the gel feels on faces scoring ignores (seams, the face an object rests on):
+    # nearest = the nearest labelled face's material (sim/felt_material.py); generic = a
+    # texture of no material, which no real object has (runs before 2026-11-30).
+    ignored_faces: str = "nearest"
 
     def __post_init__(self) -> None:
         if self.noise_std < 0 or self.texture_scale < 0:
             raise ValueError(
                 f"sensor.tactile: noise_std={self.noise_std} and texture_scale={self.texture_scale} must be >= 0"
             )
+        check_ignored_faces(self.ignored_faces)
 
 
 @dataclass

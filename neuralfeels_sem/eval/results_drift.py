@@ -115,6 +115,8 @@ def compared(key: str, flat: dict[str, Any] | None = None) -> bool:
 # came with null (off); the default became 0.99. classifier.edge_long_streak_frames came
 # with 0 (off). classifier.edge_extent came with whole (the label covers the imprint).
 # mapping.mapper.fill_m came with 0.01: runs before it read the material branch alone.
+# sensor.tactile.ignored_faces came with nearest: runs before it pressed ignored faces as a
+# texture of no material.
 ADDED_SINCE: dict[str, tuple[str, Any]] = {
     "classifier.patch_probe": ("classifier.max_patches", 0),
     "mapping.tracker.max_points_per_finger": ("mapping.tracker.max_points_per_source", 1000),
@@ -129,6 +131,7 @@ ADDED_SINCE: dict[str, tuple[str, Any]] = {
         "mapping.mapper.tactile_depth.min_contact_px",
         "torch",
     ),
+    "sensor.tactile.ignored_faces": ("sensor.tactile.texture_scale", "generic"),
 }
 
 

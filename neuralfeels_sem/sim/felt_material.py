@@ -17,16 +17,27 @@ from scipy.spatial import cKDTree
 from neuralfeels_sem.objects.material_object import IGNORE, MaterialObject
 from neuralfeels_sem.sim.gel_optics import object_points
 
+IGNORED_FACES = ("nearest", "generic")
+
+
+def check_ignored_faces(mode: str) -> None:
+    if mode not in IGNORED_FACES:
+        raise ValueError(
+            f"sensor.tactile.ignored_faces={mode!r} must be one of {', '.join(IGNORED_FACES)}"
+        )
+
 
 class FeltMaterial:
     """Per-pixel material the gel feels: the face's own, or for an ignored face the
-    material of the labelled face whose centroid lies nearest (all faces ignored: none)."""
+    material of the labelled face whose centroid lies nearest (`nearest`; all faces
+    ignored: none) or none (`generic`: the renderer's texture of no material)."""
 
-    def __init__(self, obj: MaterialObject) -> None:
+    def __init__(self, obj: MaterialObject, mode: str = "nearest") -> None:
+        check_ignored_faces(mode)
         labels = np.asarray(obj.face_labels)
         labelled = labels != IGNORE
         self._tree = None
-        if labelled.any() and not labelled.all():
+        if mode == "nearest" and labelled.any() and not labelled.all():
             self._tree = cKDTree(np.asarray(obj.mesh.triangles_center)[labelled])
             self._labels = labels[labelled].astype(np.int16)
 

@@ -86,6 +86,8 @@ class DigitRenderer:
         smooth_px: smoothing (Gaussian sigma, pixels) of the object's depth before shading,
             so triangle facets of the mesh do not show as flat shaded patches (0 = off;
             ground-truth depth is never smoothed).
+        ignored_faces: how faces scoring ignores press (sim/felt_material.py): `nearest`
+            (the nearest labelled face's material) or `generic` (a texture of no material).
     """
 
     def __init__(
@@ -101,6 +103,7 @@ class DigitRenderer:
         blur_px: float = 0.8,
         soft_blur_px: float = 1.6,
         smooth_px: float = 5.0,
+        ignored_faces: str = "nearest",
     ) -> None:
         if (
             noise_std < 0
@@ -127,7 +130,7 @@ class DigitRenderer:
         self._noise_bank: np.ndarray | None = None
         self._materials(obj.class_names, seed, texture_scale, compliance)
         self._build_scene(obj)
-        self._felt = FeltMaterial(obj)  # ignored faces press as their nearest material
+        self._felt = FeltMaterial(obj, ignored_faces)  # how ignored faces press
 
     def _materials(
         self,

@@ -216,6 +216,14 @@ def test_a_run_from_before_the_fill_reads_as_the_branch_alone() -> None:
     }
 
 
+def test_a_run_from_before_the_felt_ignored_faces_reads_as_the_generic_texture() -> None:
+    today = {"sensor.tactile.texture_scale": 1.0, "sensor.tactile.ignored_faces": "nearest"}
+    before = {"sensor": {"tactile": {"texture_scale": 1.0}}}
+    assert drift(before, {}, today) == {"sensor.tactile.ignored_faces": ("generic", "nearest")}
+    now = {"sensor": {"tactile": {"texture_scale": 1.0, "ignored_faces": "nearest"}}}
+    assert drift(now, {}, today) == {}
+
+
 def test_a_policy_sweeps_scripted_runs_at_the_defaults_join_the_object_table(
     tmp_path: Path,
 ) -> None:

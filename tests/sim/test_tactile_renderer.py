@@ -157,6 +157,13 @@ def test_ignore_faces_press_as_the_nearest_labelled_material() -> None:
     assert (outs["capped"].material == IGNORE).all()  # the ground truth keeps it ignored
     np.testing.assert_array_equal(outs["capped"].image, outs["fabric"].image)
     assert np.abs(outs["capped"].image.astype(int) - outs["plastic"].image).max() > 10
+    capped = _sphere(lambda c: np.where(c[:, 2] < -0.02, IGNORE, 2))
+    generic = DigitRenderer(capped, noise_std=0.0, ignored_faces="generic")
+    image = generic.render(np.eye(4), world_T_sensor).image
+    generic.close()
+    assert np.abs(image.astype(int) - outs["fabric"].image).max() > 10
+    with pytest.raises(ValueError, match="ignored_faces"):
+        DigitRenderer(capped, ignored_faces="felt")
 
 
 def test_penetration_beyond_the_gel_range_is_still_reported_as_contact(
