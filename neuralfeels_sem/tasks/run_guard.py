@@ -6,9 +6,10 @@ Within seconds of start, before the simulator or the classifier is built:
   (configs.validate_config, tasks/preflight.py);
 - `mapping.resume` must name a readable checkpoint of the same object (name and content
   hash), sensor, classes and model as this run (mapping/provenance.py);
-- the run directory must be new or empty, unless the run resumes the checkpoint that
-  directory holds (then it continues there: the default run directory of a resumed run is the
-  checkpoint's, the `resume_run_dir` resolver in conf/hydra/default.yaml);
+- the run directory must be new, empty or hold only a start that failed before any result
+  (Hydra's config and log), unless the run resumes the checkpoint that directory holds
+  (then it continues there: the default run directory of a resumed run is the checkpoint's,
+  the `resume_run_dir` resolver in conf/hydra/default.yaml);
 - no other live process may be running in it (run.lock with the owner's pid; the lock of
   a process that no longer runs is taken over with a warning).
 A refusal prints one line on stderr and exits with code 2, leaving the directory as it was.
@@ -62,6 +63,12 @@ def check_resume(cfg: DictConfig) -> None:
     check_provenance(saved, run_provenance(cfg, obj), str(resume))
 
 
+# What a run writes before its task starts (Hydra's config and log, the lock): a directory
+# holding only these is a start that failed before any result (say, an input the task
+# itself refused), and the corrected command may run there.
+START_FILES = frozenset({".hydra", "run.log", LOCK_NAME})
+
+
 def check_run_dir(run_dir: Path, resume: str | None) -> None:
     """Refuse a run directory that is a file or holds another run's results."""
     if run_dir.exists() and not run_dir.is_dir():
@@ -69,12 +76,17 @@ def check_run_dir(run_dir: Path, resume: str | None) -> None:
     if not run_dir.is_dir():
         return
     resumes_here = bool(resume) and Path(resume).resolve().parent == run_dir.resolve()
-    held = sorted(p.name for p in run_dir.iterdir() if p.name != LOCK_NAME)
+    held = sorted(p.name for p in run_dir.iterdir() if p.name not in START_FILES)
     if held and not resumes_here:
         shown = ", ".join(held[:4]) + (", ..." if len(held) > 4 else "")
+        checkpoint = run_dir / "checkpoint.pt"
+        then = (
+            f"or continue that run with mapping.resume={checkpoint}"
+            if checkpoint.is_file()
+            else "or delete it (it holds no checkpoint to resume)"
+        )
         raise ConfigError(
-            f"hydra.run.dir={run_dir} already holds a run ({shown}); choose a new directory, "
-            f"or continue that run with mapping.resume={run_dir / 'checkpoint.pt'}"
+            f"hydra.run.dir={run_dir} already holds a run ({shown}); choose a new directory, {then}"
         )
 
 

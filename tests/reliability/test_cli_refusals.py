@@ -106,3 +106,15 @@ def test_refused_in_one_line_with_nothing_changed(
     assert_refused(result, 2, *names)
     assert tree_digest(earlier_run) == before
     assert tree_digest(tmp_path) == before_tmp
+
+
+def test_a_start_refused_after_hydra_wrote_its_config_is_run_again_there(tmp_path: Path) -> None:
+    """An input the task refuses itself (an unknown shape family, checked where the object is
+    generated) leaves Hydra's config and log behind; the same directory then takes the next
+    command instead of calling that failed start a run to resume."""
+    run_dir = tmp_path / "run"
+    args = [*TINY, "object=random", "object.family=foo", f"hydra.run.dir={run_dir}"]
+    for _ in range(2):
+        result = run_cli(args, timeout=120)
+        assert_refused(result, 2, "object.family='foo' is unknown")
+    assert sorted(p.name for p in run_dir.iterdir() if p.name != LOCK_NAME) == [".hydra", "run.log"]

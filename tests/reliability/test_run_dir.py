@@ -55,6 +55,19 @@ def test_a_directory_holding_a_run_is_refused(tmp_path: Path, resume, phrase: st
     assert f"mapping.resume={run_dir / 'checkpoint.pt'}" in str(info.value)
 
 
+def test_a_start_that_failed_before_any_result_may_be_run_again(tmp_path: Path) -> None:
+    """Hydra's config and log alone: an input the task refused after Hydra wrote them."""
+    (tmp_path / ".hydra").mkdir()
+    (tmp_path / ".hydra" / "config.yaml").write_text("object: {}\n")
+    (tmp_path / "run.log").write_text("error: object.family='foo' is unknown\n")
+    check_run_dir(tmp_path, None)
+    (tmp_path / "touches.csv").write_text("frame\n")  # a result: refused, nothing to resume
+    with pytest.raises(ConfigError, match="already holds a run .touches.csv.") as info:
+        check_run_dir(tmp_path, None)
+    assert "delete it (it holds no checkpoint to resume)" in str(info.value)
+    assert "mapping.resume" not in str(info.value)
+
+
 def test_resuming_the_run_a_directory_holds_continues_there(tmp_path: Path) -> None:
     run_dir = _run_dir(tmp_path)
     check_run_dir(run_dir, str(run_dir / "checkpoint.pt"))
