@@ -33,8 +33,10 @@ from omegaconf import DictConfig  # noqa: E402
 
 import neuralfeels_sem  # noqa: E402, F401  (sets headless rendering defaults before any GL import)
 from neuralfeels_sem.configs import register_configs  # noqa: E402
+from neuralfeels_sem.tasks import cli_errors  # noqa: E402
 
 register_configs()
+cli_errors.install()  # a typo Hydra catches while composing: one line, exit 2
 _imports_done = True
 
 
