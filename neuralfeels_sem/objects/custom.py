@@ -156,7 +156,8 @@ def _label_source(
         label_path = sidecar_labels(mesh_path)
         if label_path is None:
             raise ConfigError(
-                f"object.mesh={mesh_path} has no labels: set object.labels=PATH (npy/json) or object.material=NAME"
+                f"object.mesh={mesh_path} has no labels: set object.labels=PATH (npy/json), "
+                "object.material=NAME (one material) or object.layout_seed=K (a drawn layout)"
             )
     return index, label_path
 

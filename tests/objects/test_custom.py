@@ -128,7 +128,9 @@ def test_missing_files(tmp_path: Path) -> None:
         mesh=str(path),
         labels=str(tmp_path / "nope.npy"),
     )
-    _one_line_error(ConfigError, "has no labels: set object.labels", mesh=str(path))
+    _one_line_error(
+        ConfigError, "has no labels: set object.labels.*object.layout_seed=K", mesh=str(path)
+    )
 
 
 def test_not_watertight(tmp_path: Path) -> None:
