@@ -10,6 +10,8 @@ from neuralfeels_sem.tasks.cli_errors import one_line
 from tests.helpers import run_cli
 from tests.reliability.checks import assert_refused
 
+SLOW = pytest.mark.slow  # each case is one start of run.py; three run by default
+
 
 def test_a_list_of_options_joins_into_one_line_without_the_search_path() -> None:
     exc = MissingConfigException(
@@ -36,13 +38,16 @@ def test_omegaconf_cause_kept_and_its_internals_dropped() -> None:
 @pytest.mark.parametrize(
     "args, names",
     [
-        (["objec=plushie"], ["'objec'", "+objec=plushie"]),
-        (["object=plushy"], ["object/plushy", "plastic_toy, plushie"]),
-        (["seed=abc"], ["seed=abc", "could not be converted to Integer"]),
-        (["seed=["], ["override 'seed=[' does not parse"]),
-        (["-m", "seed=0,1", "sensor.duration_s=abc"], ["sensor.duration_s=abc"]),
+        pytest.param(["objec=plushie"], ["'objec'", "+objec=plushie"], id="unknown_key"),
+        pytest.param(["object=plushy"], ["object/plushy", "plastic_toy, plushie"], id="option"),
+        pytest.param(["seed=["], ["override 'seed=[' does not parse"], id="bad_syntax"),
+        pytest.param(
+            ["seed=abc"], ["seed=abc", "converted to Integer"], id="bad_value", marks=SLOW
+        ),
+        pytest.param(
+            ["-m", "seed=0,1", "sensor.duration_s=abc"], ["duration_s=abc"], id="sweep", marks=SLOW
+        ),
     ],
-    ids=["unknown_key", "unknown_option", "bad_value", "bad_syntax", "sweep"],
 )
 def test_hydra_refuses_in_one_line_with_exit_code_2(tmp_path, args, names) -> None:
     result = run_cli([*args, f"hydra.run.dir={tmp_path / 'run'}"], timeout=120)
