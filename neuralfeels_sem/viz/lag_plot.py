@@ -1,5 +1,6 @@
 """bench.map_lag's picture: per run, the field's mean-class curve beside the nearest-point
-maps of its readings and of its presses' true materials, over sensor time."""
+maps of the readings the vote keeps, of all readings and of the presses' true materials,
+over sensor time."""
 
 from __future__ import annotations
 
@@ -12,9 +13,10 @@ from matplotlib.figure import Figure
 from neuralfeels_sem.viz.plots import _save
 
 SERIES_STYLE = {  # bench.map_lag's series: colour, line, legend
-    "field": ("C0", "-", "field (the run's map)"),
-    "readings": ("C1", "--", "nearest reading"),
-    "placement": ("C2", ":", "nearest press, read right (oracle)"),
+    "field": ("C0", "-", "field (the map)"),
+    "kept": ("C3", "-.", "readings the vote keeps"),
+    "readings": ("C1", "--", "all readings"),
+    "placement": ("C2", ":", "presses read right (oracle)"),
 }
 
 
@@ -31,7 +33,7 @@ def plot_map_lag(
     for ax, record in zip(axes.flat, records):
         times = [r["time_s"] for r in record["rows"]]
         for key, (colour, line, label) in SERIES_STYLE.items():
-            values = [math.nan if r[key] is None else r[key] for r in record["rows"]]
+            values = [math.nan if r.get(key) is None else r[key] for r in record["rows"]]
             ax.plot(times, values, color=colour, linestyle=line, linewidth=1.2, label=label)
         ax.axhline(record["level"], color="grey", linewidth=0.8)
         ax.set_title(f"{record['object']} s{record['seed']} {record['policy']}", fontsize=8)
@@ -42,6 +44,7 @@ def plot_map_lag(
         ax.axis("off")
     axes[0, 0].set_ylabel("mean-class matching (%)", fontsize=7)
     handles, labels = axes[0, 0].get_legend_handles_labels()
-    fig.legend(handles, labels, loc="lower center", ncol=3, fontsize=7, frameon=False)
-    fig.tight_layout(rect=(0, 0.06, 1, 1))
+    fig.legend(handles, labels, loc="lower center", ncol=2, fontsize=7, frameon=False)
+    legend_in = 0.45  # two rows of legend under the panels, whatever the figure's height
+    fig.tight_layout(rect=(0, legend_in / fig.get_figheight(), 1, 1))
     return _save(fig, path, dpi)

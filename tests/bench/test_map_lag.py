@@ -5,7 +5,7 @@ from __future__ import annotations
 import numpy as np
 import pytest
 
-from neuralfeels_sem.bench.map_lag import first_reached, lag_rows, summary_line
+from neuralfeels_sem.bench.map_lag import first_reached, kept_upto, lag_rows, summary_line
 from neuralfeels_sem.eval.matching import MatchingEvaluator
 from tests.eval.objects import two_material_sphere
 from tests.eval.test_error_sources import FABRIC, PLASTIC, _press
@@ -50,7 +50,9 @@ def test_a_time_before_any_touch_has_no_touch_maps(sphere) -> None:
     obj, matching = sphere
     points, labels, frames = _history()
     rows = lag_rows(obj, matching, (points, labels, frames + 100), [[9, 1.0, 5.0]], 1.0)
-    assert rows == [{"time_s": 1.0, "frame": 9, "field": 5.0, "readings": None, "placement": None}]
+    assert rows == [
+        {"time_s": 1.0, "frame": 9, "field": 5.0, "kept": None, "readings": None, "placement": None}
+    ]
 
 
 def test_bad_spacing_is_a_value_error(sphere) -> None:
@@ -65,11 +67,11 @@ def test_summary_line_names_each_series() -> None:
         "seed": 1,
         "policy": "active",
         "level": 90.0,
-        "first_reached_s": {"field": 10.5, "readings": 8.0, "placement": None},
+        "first_reached_s": {"field": 10.5, "kept": 9.0, "readings": 8.0, "placement": None},
     }
     assert summary_line(record) == (
-        "patchwork seed 1 active: first at 90 % mean-class: field 10.5 s, readings 8.0 s, "
-        "placement -"
+        "patchwork seed 1 active: first at 90 % mean-class: field 10.5 s, kept 9.0 s, "
+        "readings 8.0 s, placement -"
     )
 
 
@@ -106,3 +108,35 @@ def test_help_and_bad_spacing_on_the_command_line(capsys) -> None:
     with pytest.raises(SystemExit) as done:
         main(["somewhere", "--every", "0"])
     assert done.value.code == 2 and "--every=0.0 must be > 0 seconds" in capsys.readouterr().err
+
+
+def test_kept_follows_the_vote_as_it_stood_at_each_frame(sphere) -> None:
+    """Each side read right by one lone press, then backed by a second press: the vote keeps
+    a side's labels only from its second press on, while every reading counts at once."""
+    import torch
+
+    from neuralfeels_sem.mapping.label_vote import LabelVote
+    from neuralfeels_sem.mapping.touch_memory import TouchBuffer
+
+    obj, matching = sphere
+    vote = LabelVote(radius=0.01, min_neighbours=3, min_agreement=0.25, min_support=1,
+                     press_gap=0, support_radius=0.04, steady_frames=0, press_reach=None)  # fmt: skip
+    buffer = TouchBuffer(torch.device("cpu"), vote)
+    presses = [(0, "index", +1.0, 0.0, PLASTIC), (3, "middle", -1.0, 0.0, FABRIC),
+               (6, "ring", +1.0, 0.1, PLASTIC), (9, "thumb", -1.0, 0.1, FABRIC)]  # fmt: skip
+    for frame, finger, side, x, label in presses:
+        points = torch.tensor(_press(side, x), dtype=torch.float32)
+        buffer.add(points, torch.tensor([0.0, side, 0.0]), label, 1.0, finger, frame)
+    history = (
+        [_press(side, x) for _, _, side, x, _ in presses],
+        [np.full(32, label) for *_, label in presses],
+        np.array([p[0] for p in presses]),
+    )
+    curve = [[0, 0.0, 1.0], [3, 0.3, 2.0], [6, 0.6, 3.0], [9, 0.9, 4.0]]
+    rows = lag_rows(obj, matching, history, curve, 0.3, kept_upto(buffer))
+    assert [r["kept"] for r in rows[:2]] == [None, None]  # lone presses: nothing kept yet
+    assert rows[2]["kept"] == pytest.approx(50.0)  # plastic backed, fabric not yet
+    assert rows[3]["kept"] > 95.0
+    assert first_reached(rows, "readings", 90.0) == pytest.approx(0.3)
+    assert first_reached(rows, "kept", 90.0) == pytest.approx(0.9)
+    assert kept_upto(buffer)(-1)[0].shape == (0, 3)  # before any touch
