@@ -13,8 +13,9 @@ samples (a sample takes the label of the nearest contact point):
   of the simulator): what the places pressed allow with perfect reading.
 The sensor time at which each first reaches `--level` tells what holds a run back: a
 field that reaches it long after `kept` learns or extrapolates slower than its touches
-allow; `kept` long after `readings` means the vote held readings back; a late `placement` means the fingers had not yet pressed enough of the
-object (where the object turned them and where the touch policy put them).
+allow; `kept` long after `readings` means the vote held readings back; a late `placement`
+means the fingers had not yet pressed enough of the object (where the object turned them
+and where the touch policy put them).
 
     python -m neuralfeels_sem.bench.map_lag multirun/sweep/* --out lag.json --plot lag.png
 """
