@@ -107,8 +107,8 @@ def lag_rows(
                 row[key] = scores["matching_mean_class_pct"]
         if kept is not None:
             kept_points, kept_labels = kept(int(frame))
-            if (kept_labels >= 0).any():
-                used = kept_labels >= 0
+            used = kept_labels >= 0
+            if used.any():
                 scores = matching.nearest_scores(kept_points[used], kept_labels[used])
                 row["kept"] = scores["matching_mean_class_pct"]
         rows.append(row)

@@ -32,7 +32,7 @@ class FeltMaterial:
     material of the labelled face whose centroid lies nearest (`nearest`; all faces
     ignored: none) or none (`generic`: the renderer's texture of no material)."""
 
-    def __init__(self, obj: MaterialObject, mode: str = "nearest") -> None:
+    def __init__(self, obj: MaterialObject, mode: str) -> None:
         check_ignored_faces(mode)
         labels = np.asarray(obj.face_labels)
         labelled = labels != IGNORE

@@ -14,7 +14,6 @@ runs the command line and fails if a Hydra upgrade moves it.
 
 from __future__ import annotations
 
-import os
 import sys
 from collections.abc import Callable
 from typing import Any
@@ -55,7 +54,7 @@ def one_line(exc: BaseException) -> str:
 
 def _report_in_one_line(original: Callable[[Callable[[], Any]], Any]) -> Callable:
     def run_and_report(func: Callable[[], Any]) -> Any:
-        if os.environ.get("HYDRA_FULL_ERROR") == "1":
+        if hydra_utils._is_env_set("HYDRA_FULL_ERROR"):  # Hydra's own test of it
             return original(func)
 
         def guarded() -> Any:
