@@ -171,13 +171,27 @@ def test_the_default_sim_motion_is_the_one_bench_and_rig_touches_use() -> None:
 @pytest.mark.parametrize(
     ("overrides", "reach"),
     [
-        ([], None),  # sim at its offline pace: presses by time alone
+        ([], 0.01),  # sim at its offline pace
         (["sensor.pace=realtime"], 0.01),
         (["sensor=real"], 0.01),  # a rig streams
-        (["sensor=real", "sensor.pace=offline"], None),
+        (["sensor=real", "sensor.pace=offline"], 0.01),
         (["sensor.pace=realtime", "mapping.mapper.label_vote_press_reach=null"], None),
         (["mapping.mapper.label_vote_press_reach=0.02"], 0.02),
     ],
 )
-def test_the_press_reach_follows_the_pace_unless_set(overrides: list[str], reach) -> None:
+def test_the_press_reach_is_one_at_every_pace_unless_set(overrides: list[str], reach) -> None:
     assert compose_config(overrides).mapping.mapper.label_vote_press_reach == reach
+
+
+@pytest.mark.parametrize(("pace", "reach"), [("offline", None), ("realtime", 0.01)])
+def test_a_config_recorded_with_the_pace_resolver_still_resolves(pace: str, reach) -> None:
+    """Runs recorded while the reach depended on the pace keep the interpolation in their
+    .hydra/config.yaml; resuming or scoring them must still read it."""
+    compose_config()  # registers the resolvers
+    recorded = OmegaConf.create(
+        {
+            "sensor": {"pace": pace},
+            "reach": "${at_pace:${oc.select:sensor.pace,offline},null,0.01}",
+        }
+    )
+    assert recorded.reach == reach

@@ -69,6 +69,7 @@ def register_configs() -> None:
             lambda resume, default: str(Path(resume).parent) if resume else default,
         )
     # ${at_pace:pace,offline_value,realtime_value}: a setting that depends on sensor.pace.
+    # No default uses it now; the configs of runs recorded while one did still name it.
     if not OmegaConf.has_resolver("at_pace"):
         OmegaConf.register_new_resolver(
             "at_pace", lambda pace, offline, realtime: offline if pace == "offline" else realtime

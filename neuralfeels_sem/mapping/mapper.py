@@ -115,9 +115,9 @@ class MapperConfig:
     # part gets, at a small cost on the shipped objects (docs/field_and_mapper.md).
     label_vote_steady_frames: int = 3
     # A press ends where its finger has slid this far (metres) from the press's first touch
-    # (label_vote.press_events); null: presses by time alone. conf/mapping/online.yaml sets
-    # 0.01 at sensor.pace=realtime.
-    label_vote_press_reach: float | None = None
+    # (label_vote.press_events); null: presses by time alone. 1 cm: a finger that slides
+    # across a small part reads it in a press of its own, steady enough to back itself.
+    label_vote_press_reach: float | None = 0.01
     # Press fusion (press_fusion.py): a touch the classifier abstained on takes the class
     # that the presses within fuse_radius metres read together (at least fuse_min_presses
     # presses, pooled probability >= fuse_confidence), at fuse_weight; fuse_edge: touches

@@ -45,6 +45,11 @@ def replayable_mapper(init_seed: int = 0, log2_table_size: int = 14, **changes) 
         tactile_rays=16,
         material_points=16,
         space_prior_points=0,
+        # The vote off: these tests are about storage. With it, which toy touches the
+        # material loss keeps shifts the toy field's path, and the compact-storage check's
+        # spread with it (at mapper seeds 3-5: 1-2 % of the largest SDF without the vote,
+        # 1-8 % with today's).
+        label_vote_radius=0.0,
         seed=3,
     )
     config = MapperConfig(**{**settings, **changes})
