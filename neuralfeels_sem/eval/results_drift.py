@@ -14,6 +14,8 @@ from __future__ import annotations
 from typing import Any
 
 import yaml
+from omegaconf import OmegaConf
+from omegaconf.errors import OmegaConfBaseException
 
 from neuralfeels_sem.utils.nested import flatten
 
@@ -148,9 +150,27 @@ def drift(recorded: dict, overrides: dict[str, str], today: dict[str, Any]) -> d
         now = today.get(key, _MISSING)
         if key in overrides or now is _MISSING or not compared(key, flat):
             continue
+        if _interpolated(value) and not _interpolated(now):
+            value = resolved(recorded, key, value)
         if not same_value(value, now):
             out[key] = (value, now)
     return out
+
+
+def _interpolated(value: Any) -> bool:
+    return isinstance(value, str) and "${" in value
+
+
+def resolved(recorded: dict, key: str, value: str) -> Any:
+    """A recorded interpolation's value in the run's own config (label_vote_press_reach
+    followed sensor.pace once, `${at_pace:...}`, where today's default is a plain value);
+    the text as recorded when it does not resolve to a plain value (a resolver no longer
+    registered, a key the run's config lacks)."""
+    try:
+        out = OmegaConf.select(OmegaConf.create(recorded), key, throw_on_resolution_failure=True)
+    except (OmegaConfBaseException, ValueError):
+        return value
+    return out if out is None or isinstance(out, str | int | float | bool) else value
 
 
 def redundant(overrides: dict[str, str], today: dict[str, Any]) -> set[str]:

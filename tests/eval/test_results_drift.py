@@ -216,6 +216,23 @@ def test_a_run_from_before_the_fill_reads_as_the_branch_alone() -> None:
     }
 
 
+@pytest.mark.parametrize(("pace", "then"), [("offline", None), ("realtime", 0.01)])
+def test_a_pace_dependent_default_reads_as_the_value_it_had_in_the_run(pace: str, then) -> None:
+    compose_config()  # registers the at_pace resolver, as the results page's composing does
+    reach = "${at_pace:${oc.select:sensor.pace,offline},null,0.01}"
+    recorded = {"sensor": {"pace": pace}, "mapping": {"mapper": {"label_vote_press_reach": reach}}}
+    today = {"sensor.pace": pace, "mapping.mapper.label_vote_press_reach": 0.01}
+    expected = {} if then == 0.01 else {"mapping.mapper.label_vote_press_reach": (then, 0.01)}
+    assert drift(recorded, {}, today) == expected
+    # both sides written as the same interpolation are compared as written
+    assert drift(recorded, {}, {**today, "mapping.mapper.label_vote_press_reach": reach}) == {}
+    # an interpolation that does not resolve stays as recorded
+    lost = {"mapping": {"mapper": {"label_vote_press_reach": "${no_such_resolver:1}"}}}
+    assert drift(lost, {}, today) == {
+        "mapping.mapper.label_vote_press_reach": ("${no_such_resolver:1}", 0.01)
+    }
+
+
 def test_a_run_from_before_the_felt_ignored_faces_reads_as_the_generic_texture() -> None:
     today = {"sensor.tactile.texture_scale": 1.0, "sensor.tactile.ignored_faces": "nearest"}
     before = {"sensor": {"tactile": {"texture_scale": 1.0}}}
