@@ -179,7 +179,7 @@ def test_the_default_sim_motion_is_the_one_bench_and_rig_touches_use() -> None:
         (["mapping.mapper.label_vote_press_reach=0.02"], 0.02),
     ],
 )
-def test_the_press_reach_is_one_at_every_pace_unless_set(overrides: list[str], reach) -> None:
+def test_the_press_reach_is_1_cm_at_every_pace_unless_set(overrides: list[str], reach) -> None:
     assert compose_config(overrides).mapping.mapper.label_vote_press_reach == reach
 
 
