@@ -128,13 +128,16 @@ def main(argv: Sequence[str] | None = None) -> int:
     parser.add_argument("dirs", nargs="+", metavar="DIR", help="run or sweep directory")
     args = parser.parse_args(argv)
     archive = args.archive
+    # A directory named twice (`sweep` and `sweep/`) would count its runs twice.
+    dirs = list(dict.fromkeys(str(Path(d)) for d in args.dirs))
+    benches = list(dict.fromkeys(args.bench))
     try:
-        sources = against_today([source_of(Path(d), archive) for d in args.dirs])
+        sources = against_today([source_of(Path(d), archive) for d in dirs])
         locate = (lambda p: p) if archive is None else (lambda p: kept_bench(p, archive))
         page = render(
             sources,
-            build_command(args.out, args.dirs, args.bench, args.readme, archive),
-            args.bench,
+            build_command(args.out, dirs, benches, args.readme, archive),
+            benches,
             locate,
         )
         if args.out is None:

@@ -458,3 +458,9 @@ def test_a_default_run_repeated_in_another_source_counts_once(
     row = cells(section(page, "Multi-material objects"), "`patched_toy`")
     assert row[3] == ", ".join(f"{v:.1f}" for v in PATCHED)  # the repeat's 12.0 left out
     assert "viz.live=rerun" in section(page, "Other settings")
+
+
+def test_a_directory_named_twice_counts_once(tmp_path: Path, object_sweep: Path) -> None:
+    once = generate(tmp_path, object_sweep)
+    twice = generate(tmp_path, object_sweep, Path(f"{object_sweep}/"), object_sweep)
+    assert twice == once
