@@ -128,7 +128,7 @@ def sampled(curve: list[list[float]], every_s: float) -> list[list[float]]:
 
 def first_reached(rows: list[dict], key: str, level: float) -> float | None:
     """Sensor time (s) of the first row whose `key` is at least `level` (None: never)."""
-    return next((r["time_s"] for r in rows if r.get(key) is not None and r[key] >= level), None)
+    return next((r["time_s"] for r in rows if r[key] is not None and r[key] >= level), None)
 
 
 def run_lag(run_dir: Path, every_s: float, level: float) -> dict:
@@ -156,7 +156,7 @@ def run_lag(run_dir: Path, every_s: float, level: float) -> dict:
 
 def summary_line(record: dict) -> str:
     reached = record["first_reached_s"]
-    parts = [f"{k} {'-' if reached.get(k) is None else f'{reached[k]:.1f} s'}" for k in SERIES]
+    parts = [f"{k} {'-' if reached[k] is None else f'{reached[k]:.1f} s'}" for k in SERIES]
     return (
         f"{record['object']} seed {record['seed']} {record['policy']}: "
         f"first at {record['level']:g} % mean-class: " + ", ".join(parts)

@@ -33,7 +33,7 @@ def plot_map_lag(
     for ax, record in zip(axes.flat, records):
         times = [r["time_s"] for r in record["rows"]]
         for key, (colour, line, label) in SERIES_STYLE.items():
-            values = [math.nan if r.get(key) is None else r[key] for r in record["rows"]]
+            values = [math.nan if r[key] is None else r[key] for r in record["rows"]]
             ax.plot(times, values, color=colour, linestyle=line, linewidth=1.2, label=label)
         ax.axhline(record["level"], color="grey", linewidth=0.8)
         ax.set_title(f"{record['object']} s{record['seed']} {record['policy']}", fontsize=8)

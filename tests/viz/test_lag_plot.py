@@ -1,4 +1,4 @@
-"""bench.map_lag's picture: one panel per run, the three series against sensor time."""
+"""bench.map_lag's picture: one panel per run, the four series against sensor time."""
 
 from __future__ import annotations
 
@@ -10,10 +10,13 @@ from neuralfeels_sem.viz.lag_plot import plot_map_lag
 
 
 def _record(policy: str) -> dict:
+    series = ((0.0, None, None), (1.0, 60.0, 70.0), (2.0, 90.0, 92.0), (3.0, 93.0, 93.0))
     rows = [
-        {"time_s": t, "frame": int(10 * t), "field": 30 + 20 * t, "readings": r, "placement": 95.0}
-        for t, r in ((0.0, None), (1.0, 70.0), (2.0, 92.0), (3.0, 93.0))
+        {"time_s": t, "frame": int(10 * t), "field": 30 + 20 * t, "kept": k, "readings": r}
+        for t, k, r in series
     ]
+    for row in rows:
+        row["placement"] = 95.0
     return {"object": "patchwork", "seed": 0, "policy": policy, "level": 90.0, "rows": rows}
 
 
