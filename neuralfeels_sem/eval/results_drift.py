@@ -134,6 +134,7 @@ ADDED_SINCE: dict[str, tuple[str, Any]] = {
         "torch",
     ),
     "sensor.tactile.ignored_faces": ("sensor.tactile.texture_scale", "generic"),
+    "mapping.mapper.space_prior_margin": ("mapping.mapper.space_prior_weight", 0.0),
 }
 
 

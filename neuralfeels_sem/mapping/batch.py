@@ -46,6 +46,7 @@ class Batch:
     rays: list[tuple[RaySamples, float]]  # geometry samples per source, with its loss weight
     camera: CameraRays | None
     space_sign: torch.Tensor  # (S,) target sign of the space-prior points (+1 out, -1 solid)
+    space_floor: torch.Tensor  # (S,) metres an outside point's SDF must reach (0: solid)
     material_labels: torch.Tensor  # (M,)
     material_weights: torch.Tensor  # (M,) classifier confidence
 
@@ -79,6 +80,7 @@ class BatchSampler:
         )
         self._grouped: tuple | None = None  # (labels, label_groups(labels)) of the last step
         self.space_prior_points = config.space_prior_points
+        self.space_prior_margin = float(config.space_prior_margin)
         self.truncation = float(config.truncation)
         self.camera_free_range = float(config.camera_free_range)
         self.tactile_free_range = float(config.tactile_free_range)
@@ -105,17 +107,22 @@ class BatchSampler:
             )
         x_mat = touch["labelled_points"][pick]
         # Space-prior points (cube samples with a target sign), none until the hull exists.
-        x_space, sign_space = x_mat[:0], x_mat[:0, 0]
+        x_space, sign_space, floor_space = x_mat[:0], x_mat[:0, 0], x_mat[:0, 0]
         prior = self.memory.space_prior
         if prior is not None and prior.ready:
-            x_space, sign_space = prior.sample(
-                self.space_prior_points, self.truncation, self.generator, self.device
+            x_space, sign_space, floor_space = prior.sample(
+                self.space_prior_points,
+                self.truncation,
+                self.generator,
+                self.device,
+                self.space_prior_margin,
             )
         return Batch(
             x=torch.cat([r.x for r, _ in rays] + [x_space, x_mat]),
             rays=rays,
             camera=camera,
             space_sign=sign_space,
+            space_floor=floor_space,
             material_labels=touch["labelled_labels"][pick],
             material_weights=touch["labelled_weights"][pick],
         )

@@ -43,11 +43,16 @@ def freespace_loss(sdf: torch.Tensor, bound: torch.Tensor) -> torch.Tensor:
     return F.relu(-sdf) + F.relu(sdf - bound)
 
 
-def space_prior_loss(sdf: torch.Tensor, sign: torch.Tensor) -> torch.Tensor:
-    """Hinge on the SDF's sign: +1 targets (outside) penalise sdf < 0, -1 (solid) sdf > 0."""
-    if sign.shape != sdf.shape:
-        raise ValueError(f"sign {tuple(sign.shape)} must match sdf {tuple(sdf.shape)}")
-    return F.relu(-sign * sdf)
+def space_prior_loss(
+    sdf: torch.Tensor, sign: torch.Tensor, floor: torch.Tensor | None = None
+) -> torch.Tensor:
+    """Hinge on the SDF's sign: +1 targets (outside) penalise sdf < floor (0 by default),
+    -1 (solid) sdf > 0."""
+    if sign.shape != sdf.shape or (floor is not None and floor.shape != sdf.shape):
+        shapes = (tuple(sign.shape), None if floor is None else tuple(floor.shape))
+        raise ValueError(f"sign and floor {shapes} must match sdf {tuple(sdf.shape)}")
+    floor = torch.zeros_like(sdf) if floor is None else torch.where(sign > 0, floor, 0.0)
+    return F.relu(floor - sign * sdf)
 
 
 def eikonal_loss(gradient: torch.Tensor) -> torch.Tensor:

@@ -39,7 +39,8 @@ def check_lengths_and_weights(config: MapperConfig) -> None:
             )
     non_negative = (
         "camera_weight", "tactile_weight", "sdf_weight", "freespace_weight",
-        "eikonal_weight", "space_prior_weight", "material_weight", "label_vote_radius",
+        "eikonal_weight", "space_prior_weight", "space_prior_margin", "material_weight",
+        "label_vote_radius",
     )  # fmt: skip
     for name in non_negative:
         if getattr(config, name) < 0:

@@ -66,7 +66,9 @@ class MapperObjective:
                 losses["eikonal"] = eikonal_loss(grad).mean()
         if n_space:
             sdf_space = out["sdf"][n_geo : n_geo + n_space]
-            losses["space"] = space_prior_loss(sdf_space, batch.space_sign).mean()
+            losses["space"] = space_prior_loss(
+                sdf_space, batch.space_sign, batch.space_floor
+            ).mean()
         if len(batch.material_labels):
             # The material rows come last (the field may return logits for them alone).
             logits = out["material_logits"][-len(batch.material_labels) :]

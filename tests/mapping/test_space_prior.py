@@ -50,11 +50,28 @@ def test_sample_keeps_clear_of_observed_surface() -> None:
     prior.add_surface(surface)
     prior.update_hull()
     g = torch.Generator().manual_seed(0)
-    x, sign = prior.sample(4000, 0.01, g, torch.device("cpu"))
+    x, sign, floor = prior.sample(4000, 0.01, g, torch.device("cpu"))
     r = x.norm(dim=1)
-    assert len(x) > 1000 and x.shape == (len(sign), 3)
+    assert len(x) > 1000 and x.shape == (len(sign), 3) and floor.shape == sign.shape
     assert ((r - 0.05).abs() > 0.0095).all()  # within 1 cm of the sphere: dropped
     assert (sign[r < 0.04] == SOLID).all() and (sign[r > 0.06] == OUTSIDE).all()
+    assert (floor == 0).all()  # margin 0: the sign alone
+
+
+def test_sample_floors_outside_points_at_their_distance_from_the_hull() -> None:
+    prior = SpaceCarvingPrior(bound=0.1, resolution=32)
+    prior.add_surface(_sphere_points(0.05, 4000))
+    prior.update_hull()
+    g = torch.Generator().manual_seed(0)
+    x, sign, floor = prior.sample(4000, 0.01, g, torch.device("cpu"), margin=0.02)
+    r = x.norm(dim=1)
+    # Outside a hull of 4000 points on the sphere, the distance to the hull is within a
+    # fraction of a millimetre of the distance to the sphere (its facets are that small).
+    outside = r > 0.06
+    assert torch.allclose(floor[outside], (r[outside] - 0.05).clamp(max=0.02), atol=5e-4)
+    assert (floor[r < 0.04] == 0).all() and floor.max() == pytest.approx(0.02)
+    with pytest.raises(ValueError, match="margin"):
+        prior.sample(10, 0.01, g, torch.device("cpu"), margin=-0.01)
 
 
 def test_degenerate_points_give_no_hull() -> None:
@@ -105,6 +122,10 @@ def test_space_prior_loss_is_a_sign_hinge() -> None:
     sdf = torch.tensor([-0.01, 0.02, -0.01, 0.02])
     sign = torch.tensor([OUTSIDE, OUTSIDE, SOLID, SOLID])
     assert torch.allclose(space_prior_loss(sdf, sign), torch.tensor([0.01, 0.0, 0.0, 0.02]))
+    # A floor lifts the outside points' target; solid points keep theirs at zero.
+    floor = torch.full((4,), 0.03)
+    expected = torch.tensor([0.04, 0.01, 0.0, 0.02])
+    assert torch.allclose(space_prior_loss(sdf, sign, floor), expected)
 
 
 def _carved_by_points(prior: SpaceCarvingPrior, origin: np.ndarray, ends: np.ndarray) -> np.ndarray:
