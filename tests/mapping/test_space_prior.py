@@ -7,6 +7,7 @@ import pytest
 import torch
 
 from neuralfeels_sem.mapping.losses import space_prior_loss
+from neuralfeels_sem.mapping.mapper import MapperConfig
 from neuralfeels_sem.mapping.space_prior import OUTSIDE, SOLID, SpaceCarvingPrior
 
 
@@ -114,6 +115,8 @@ def test_state_round_trip() -> None:
 def test_bad_arguments_raise() -> None:
     with pytest.raises(ValueError, match="bound"):
         SpaceCarvingPrior(bound=0.0)
+    with pytest.raises(ValueError, match="space_prior_margin=-0.001 must be >= 0"):
+        MapperConfig(num_classes=2, space_prior_margin=-0.001)
     with pytest.raises(ValueError, match="match"):
         space_prior_loss(torch.zeros(3), torch.zeros(2))
 
