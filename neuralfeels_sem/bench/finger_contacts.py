@@ -6,10 +6,14 @@ and the finger counts as in contact when at least `min_pixels` gel pixels touch.
 Also reported: how often contact is re-made (gaiting), the rig's own `touching`
 flag and press depth, the share of the surface within 1 cm of a touched point, the
 closest approach between geoms of different fingers (DIGIT bodies and links; negative =
-overlap), the closest approach of gel centres and the worst joint-limit violation.
+overlap), the closest approach of gel centres, the worst joint-limit violation, and the
+frames where a finger ends the step inside the object (the object reaching deeper into its
+gel than the gel can be pressed, MAX_PENETRATION_M: no real finger gets there, and its
+contact points land inside the object).
 
     python -m neuralfeels_sem.bench.finger_contacts                      # every shipped object
     python -m neuralfeels_sem.bench.finger_contacts --objects candle_holder --duration 5
+    python -m neuralfeels_sem.bench.finger_contacts --objects random:103 --duration 30 --seed 1
 
 Not a bench_* module, so `make bench` does not run it (about half a minute per object).
 """
@@ -28,12 +32,13 @@ import numpy as np
 from scipy.spatial import cKDTree
 
 from neuralfeels_sem.configs.sensor_sim import SimSensorConfig
-from neuralfeels_sem.core.digit import GEL_DISTANCE_M
+from neuralfeels_sem.core.digit import GEL_DISTANCE_M, MAX_PENETRATION_M
 from neuralfeels_sem.core.hand import FINGERS
 from neuralfeels_sem.core.materials import DEFAULT_MATERIALS
 from neuralfeels_sem.objects.library import make_object
 from neuralfeels_sem.objects.material_object import MaterialObject
 from neuralfeels_sem.objects.procedural import RECIPES
+from neuralfeels_sem.objects.random_object import make_random_object
 from neuralfeels_sem.sim.rig import SimRig
 
 CLASSES = tuple(DEFAULT_MATERIALS)
@@ -49,6 +54,8 @@ class ContactReport:
     touching_fraction: dict[str, float]  # the rig's own touching flag
     mean_contact_px: dict[str, float]  # mean contact area over frames in contact
     mean_press_mm: dict[str, float]  # the rig's press depth while touching
+    inside_frames: dict[str, list[int]]  # frames the finger ends inside the object
+    deepest_press_mm: dict[str, float]  # the object's deepest reach into the gel, any phase
     min_finger_gap_m: dict[str, float]  # closest approach per finger pair (geom distance)
     min_gel_distance_m: dict[str, float]  # closest gel centres per finger pair
     joint_limit_violation_rad: float  # worst excursion past a joint limit (0 = none)
@@ -165,6 +172,13 @@ def _report(name: str, obj: MaterialObject, n: int, tally: _Tally, render: bool)
             else 0.0
             for j, f in enumerate(FINGERS)
         },
+        inside_frames={
+            f: np.flatnonzero(press[:, j] > MAX_PENETRATION_M).tolist()
+            for j, f in enumerate(FINGERS)
+        },
+        deepest_press_mm={
+            f: round(1000 * float(press[:, j].max()), 2) for j, f in enumerate(FINGERS)
+        },
         min_finger_gap_m={k: round(float(v), 4) for k, v in tally.gaps.items()},
         min_gel_distance_m={k: round(v, 4) for k, v in tally.gel_distance.items()},
         joint_limit_violation_rad=round(max(tally.violation, 0.0), 6),
@@ -182,11 +196,12 @@ def measure(
     render: bool = True,
     rig_options: dict | None = None,
 ) -> ContactReport:
-    """Run the rig on shipped object `name` (or on an object); `render=False`: no DIGIT renders.
+    """Run the rig on shipped object `name` (`random:K`: generated object K; or an object);
+    `render=False`: no DIGIT renders.
 
     Without renders the contact fraction is the rig's touching flag.
     """
-    obj = name if isinstance(name, MaterialObject) else make_object(name, CLASSES)
+    obj = name if isinstance(name, MaterialObject) else _object(name)
     name = obj.name
     rig = SimRig(obj, seed=seed, **(rig_options or {}))
     rig.open()
@@ -212,11 +227,18 @@ def measure(
     return _report(name, obj, n, tally, render)
 
 
+def _object(name: str) -> MaterialObject:
+    """A shipped object by name, or generated object K as `random:K`."""
+    if name.startswith("random:"):
+        return make_random_object(int(name.split(":", 1)[1]), CLASSES)
+    return make_object(name, CLASSES)
+
+
 def table(reports: Sequence[ContactReport]) -> str:
     """Markdown table of contact fractions (index / middle / ring / thumb) per object."""
     lines = [
-        "| object | contact fraction, index / middle / ring / thumb | re-touches | closest fingers (mm) | closest gel centres (mm) |",
-        "|---|---|---|---|---|",
+        "| object | contact fraction, index / middle / ring / thumb | re-touches | closest fingers (mm) | closest gel centres (mm) | frames inside the object |",
+        "|---|---|---|---|---|---|",
     ]
     for r in reports:
         frac = " / ".join(f"{r.contact_fraction[f]:.2f}" for f in FINGERS)
@@ -225,9 +247,15 @@ def table(reports: Sequence[ContactReport]) -> str:
         near = min(r.min_gel_distance_m, key=r.min_gel_distance_m.get)
         lines.append(
             f"| `{r.object}` | {frac} | {remakes} | {1000 * r.min_finger_gap_m[pair]:.1f} ({pair})"
-            f" | {1000 * r.min_gel_distance_m[near]:.1f} ({near}) |"
+            f" | {1000 * r.min_gel_distance_m[near]:.1f} ({near}) | {_inside(r)} |"
         )
     return "\n".join(lines)
+
+
+def _inside(report: ContactReport) -> str:
+    """`finger: frames` for each finger that ended a step inside the object, or `none`."""
+    listed = [f"{f}: {', '.join(map(str, v))}" for f, v in report.inside_frames.items() if v]
+    return "; ".join(listed) or "none"
 
 
 def main(argv: list[str] | None = None) -> None:
@@ -238,6 +266,9 @@ def main(argv: list[str] | None = None) -> None:
     parser.add_argument("--seed", type=int, default=0)
     parser.add_argument("--json", help="also write the reports here")
     parser.add_argument(
+        "--no-render", action="store_true", help="no DIGIT renders: contact = the rig's flag"
+    )
+    parser.add_argument(
         "--one-axis", action="store_true", help="turn about rotation_axis only (no alternate axis)"
     )
     args = parser.parse_args(argv)
@@ -246,7 +277,9 @@ def main(argv: list[str] | None = None) -> None:
         motion["alternate_axis"] = None
     reports = []
     for name in args.objects:
-        report = measure(name, args.duration, args.fps, args.seed, rig_options=motion)
+        report = measure(
+            name, args.duration, args.fps, args.seed, render=not args.no_render, rig_options=motion
+        )
         print(json.dumps(asdict(report)), flush=True)
         reports.append(report)
     print(table(reports))
