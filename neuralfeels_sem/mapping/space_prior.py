@@ -17,9 +17,9 @@ floor: how far outside the hull a point lies is a lower bound on its true SDF (t
 is inside the hull), so an outside point's SDF must reach that distance, up to `margin`.
 The mapper adds a hinge loss on each (losses.space_prior_loss). Without the floor the
 hinge only pushes a wrong-signed SDF back to zero, and where nothing else constrains the
-field (behind the fingers, which the camera never sees past) it hovers about zero there
-and marching cubes draws loose sheets (yarn_ball: 14 % of the mesh's area 14-28 mm
-outside the hull).
+field (space crossed only by camera rays that end on the hand or the background, which the
+SDF losses do not sample) it hovers about zero and marching cubes draws loose sheets
+(yarn_ball: 15 % of the mesh's area, 14-28 mm outside the hull).
 """
 
 from __future__ import annotations
