@@ -33,6 +33,7 @@ from scipy.spatial import cKDTree
 
 from neuralfeels_sem.configs.sensor_sim import SimSensorConfig
 from neuralfeels_sem.core.digit import GEL_DISTANCE_M, MAX_PENETRATION_M
+from neuralfeels_sem.core.errors import ConfigError
 from neuralfeels_sem.core.hand import FINGERS
 from neuralfeels_sem.core.materials import DEFAULT_MATERIALS
 from neuralfeels_sem.objects.library import make_object
@@ -230,7 +231,10 @@ def measure(
 def _object(name: str) -> MaterialObject:
     """A shipped object by name, or generated object K as `random:K`."""
     if name.startswith("random:"):
-        return make_random_object(int(name.split(":", 1)[1]), CLASSES)
+        seed = name.split(":", 1)[1]
+        if not seed.isdigit():
+            raise ValueError(f"--objects {name}: a generated object is random:K, K a seed >= 0")
+        return make_random_object(int(seed), CLASSES)
     return make_object(name, CLASSES)
 
 
@@ -275,10 +279,14 @@ def main(argv: list[str] | None = None) -> None:
     motion = SimSensorConfig().rig_motion()  # the default sensor=sim motion
     if args.one_axis:
         motion["alternate_axis"] = None
+    try:
+        objects = [_object(name) for name in args.objects]
+    except (ValueError, ConfigError) as error:
+        parser.error(str(error))  # one line and exit code 2, before any rig runs
     reports = []
-    for name in args.objects:
+    for obj in objects:
         report = measure(
-            name, args.duration, args.fps, args.seed, render=not args.no_render, rig_options=motion
+            obj, args.duration, args.fps, args.seed, render=not args.no_render, rig_options=motion
         )
         print(json.dumps(asdict(report)), flush=True)
         reports.append(report)

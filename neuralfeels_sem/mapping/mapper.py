@@ -91,7 +91,7 @@ class MapperConfig:
     space_prior_resolution: int = 64  # carving voxels per side
     # An outside point's SDF must reach its distance outside the hull of observed points, up
     # to this (metres); 0: only its sign. 5 mm: no loose sheets outside the hull (yarn_ball),
-    # development objects' F-score as high or higher in all 40 runs (space_prior.py).
+    # no development run's F-score at 5 mm lower by more than 0.001 (space_prior.py).
     space_prior_margin: float = 0.005
     # Frames between rebuilds of the hull of observed points (and the tree the prior's
     # samples keep clear of them with), ~25 ms of the mapper's CPU each: every 5th frame

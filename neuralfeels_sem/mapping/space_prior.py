@@ -171,10 +171,11 @@ class SpaceCarvingPrior:
         clearance: float,
         generator: torch.Generator,
         device: torch.device,
-        margin: float = 0.0,
+        margin: float,
     ) -> tuple[torch.Tensor, torch.Tensor, torch.Tensor]:
         """Up to n uniform points in the cube with their target signs and SDF floors (the
-        distance outside the hull up to `margin`; 0 for solid points and at margin 0).
+        distance outside the hull up to `margin` (mapping.mapper.space_prior_margin); 0 for
+        solid points and at margin 0).
 
         Points within `clearance` of an observed surface point are dropped: near the surface
         the measurements decide, and a carved voxel may straddle the surface.

@@ -51,7 +51,7 @@ def test_sample_keeps_clear_of_observed_surface() -> None:
     prior.add_surface(surface)
     prior.update_hull()
     g = torch.Generator().manual_seed(0)
-    x, sign, floor = prior.sample(4000, 0.01, g, torch.device("cpu"))
+    x, sign, floor = prior.sample(4000, 0.01, g, torch.device("cpu"), margin=0.0)
     r = x.norm(dim=1)
     assert len(x) > 1000 and x.shape == (len(sign), 3) and floor.shape == sign.shape
     assert ((r - 0.05).abs() > 0.0095).all()  # within 1 cm of the sphere: dropped

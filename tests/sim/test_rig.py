@@ -7,7 +7,7 @@ import pytest
 import trimesh
 from scipy.spatial import cKDTree
 
-from neuralfeels_sem.bench.finger_contacts import finger_gaps, finger_geoms, measure
+from neuralfeels_sem.bench.finger_contacts import finger_gaps, finger_geoms, main, measure
 from neuralfeels_sem.configs.sensor_sim import SimSensorConfig
 from neuralfeels_sem.core.hand import FINGERS
 from neuralfeels_sem.objects.material_object import MaterialObject
@@ -169,3 +169,12 @@ def test_no_finger_ends_a_step_inside_the_object() -> None:
     )
     assert report.deepest_press_mm["middle"] > 1.0  # the rig pressed: the check can see
     assert not any(report.inside_frames.values()), report.inside_frames
+
+
+@pytest.mark.parametrize("name", ["random:x", "no_such_object"])
+def test_finger_contacts_refuses_an_unknown_object_in_one_line(name: str, capsys) -> None:
+    with pytest.raises(SystemExit) as stopped:
+        main(["--objects", name, "--no-render"])
+    assert stopped.value.code == 2
+    last = capsys.readouterr().err.strip().splitlines()[-1]
+    assert last.endswith("a seed >= 0" if name.startswith("random:") else "or object=custom")
