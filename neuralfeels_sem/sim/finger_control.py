@@ -10,6 +10,7 @@ from collections.abc import Sequence
 
 import numpy as np
 
+from neuralfeels_sem.core.digit import MAX_PENETRATION_M
 from neuralfeels_sem.sim.ik import FingerTarget
 from neuralfeels_sem.sim.policy import FingerPlan
 from neuralfeels_sem.sim.rig_params import OVERLAP_TOLERANCE_M, PRESS_CONTROL_ROUNDS, REST_Q
@@ -87,3 +88,33 @@ class FingerControl:
                 before, press[f] = press[f], self.press_depth(f)
                 if press[f] > -PROBE_BACK_M and before > -PROBE_BACK_M:
                     gain[f] = float(np.clip((press[f] - before) / move, 0.3, 4.0))
+
+    def _back_out(
+        self,
+        plans: dict[str, FingerPlan],
+        targets: dict[str, FingerTarget],
+        errors: dict[str, float],
+        press: dict[str, float],
+    ) -> None:
+        """No finger ends a step inside the object, deeper than a gel can be pressed.
+
+        A finger between touches whose IK target the turning object has swallowed, or one
+        _keep_apart put back to where it was, can sit 19 mm deep; no real finger gets there,
+        and its DIGIT would show a full press whose contact points lie inside the object.
+        Such a finger is pressed back to its firmness, and if that cannot get it out, goes to
+        its rest posture. Updates targets, errors and press in place.
+        """
+        inside = [f for f in self.fingers if press[f] > MAX_PENETRATION_M]
+        if not inside:
+            return
+        self._press_control(inside, plans, targets, errors, press)
+        still = [f for f in inside if press[f] > MAX_PENETRATION_M]
+        if not still:
+            return
+        for f in still:
+            adr = self.ik.qpos_adr[f]
+            self.scene.data.qpos[adr] = REST_Q[adr]
+        self.ik.forward()
+        for f in still:
+            press[f] = self.press_depth(f)
+            errors[f] = float(np.linalg.norm(targets[f].gel_position - self.ik.gel_pose(f)[0]))

@@ -250,6 +250,7 @@ class SimRig(ContactSampler, FingerControl, RigProbes):
         for f in self._keep_apart(plans, self.q):
             errors[f] = float(np.linalg.norm(targets[f].gel_position - self.ik.gel_pose(f)[0]))
             press[f] = self.press_depth(f)
+        self._back_out(plans, targets, errors, press)
         touching, contact = self._record_contacts(
             plans, errors, press, world_T_object, object_T_world
         )

@@ -156,14 +156,9 @@ def test_fingers_keep_off_a_flat_base_that_the_alternate_axis_brings_round() -> 
     assert (normals[:, 2] > BOTTOM_COS).sum() > 0  # while the top does come round
 
 
-@pytest.mark.xfail(
-    strict=True,
-    reason="known rig glitch: a finger not in contact can end a step inside the object "
-    "(docs/simulation.md#known-limitations-of-the-rig); remove this mark with the fix",
-)
 def test_no_finger_ends_a_step_inside_the_object() -> None:
-    """Generated object 103 at seed 1, the default motion: the index finger ends frame 17
-    with the object 19 mm into its gel (a frame of a default 30 s run)."""
+    """Generated object 103 at seed 1, the default motion: without SimRig._back_out the index
+    finger ended frame 17 with the object 19 mm into its gel (a frame of a default 30 s run)."""
     report = measure(
         "random:103", 2.0, seed=1, render=False, rig_options=SimSensorConfig().rig_motion()
     )
