@@ -15,6 +15,7 @@ import yaml
 from neuralfeels_sem.core.errors import DataError
 from neuralfeels_sem.eval.aggregate import read_job
 from neuralfeels_sem.eval.oracles import ORACLES, oracles_used
+from neuralfeels_sem.eval.results_code import code_drift
 from neuralfeels_sem.eval.results_drift import (
     current_overrides,
     drift,
@@ -101,12 +102,14 @@ class Run:
     @cached_property
     def drift(self) -> dict[str, tuple]:
         """{key: (value the run used, today's default)} for defaults changed since the run,
-        the shipped networks' weights among them (results_weights.py)."""
+        the shipped networks' weights (results_weights.py) and behaviour changed without a
+        key (results_code.py) among them."""
         if self.today is None or self.config is None:
             return {}
         commit = get(self.metrics, "code.commit")
-        weights = weights_drift(flatten(self.config), self.overrides, commit)
-        return drift(self.config, self.overrides, self.today) | weights
+        flat = flatten(self.config)
+        weights = weights_drift(flat, self.overrides, commit)
+        return drift(self.config, self.overrides, self.today) | weights | code_drift(flat, commit)
 
     @property
     def single_material(self) -> bool:

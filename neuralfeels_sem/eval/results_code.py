@@ -1,0 +1,55 @@
+"""Whether a run ran today's code where its behaviour changed without a config key.
+
+Most changes of what a run measures come with a config key (results_drift.py reads them),
+the shipped networks' weights with their file (results_weights.py). A fix in the simulated
+rig changes every simulated run's figures with no key to tell the runs before it apart. Such
+changes are listed here with the commit that made them; a run whose recorded commit
+(`metrics.json` `code.commit`) does not contain that commit shows, on the results page, the
+change's key set to `before@<commit>` (today's: `since@<commit>`), as for any other changed
+default. A run without a commit, or whose commit the repository lacks, is taken as today's.
+"""
+
+from __future__ import annotations
+
+from functools import cache
+from pathlib import Path
+from typing import Any
+
+from neuralfeels_sem.utils.code_version import git_output
+from neuralfeels_sem.utils.paths import REPO_DIR
+
+SHORT = 7  # hex digits of a commit shown, as git abbreviates
+
+
+# key -> (the commit that changed the behaviour, the sensor it applies to, what changed)
+BEHAVIOUR_CHANGES: dict[str, tuple[str, str, str]] = {
+    "sim.rig": (
+        "bebc0c69274aea2fed0ab7a5257243fb508a3b84",
+        "sim",
+        "no finger ends a step inside the object deeper than a gel can be pressed",
+    ),
+}
+
+
+@cache
+def contains(commit: str, change: str, repo: Path = REPO_DIR) -> bool | None:
+    """Whether `commit` has `change` in its history (None: either is unknown here)."""
+    for c in (commit, change):
+        if git_output("rev-parse", "--verify", "--quiet", f"{c}^{{commit}}", repo=repo) is None:
+            return None
+    return git_output("merge-base", "--is-ancestor", change, commit, repo=repo) is not None
+
+
+def code_drift(
+    flat_config: dict[str, Any], commit: str | None, repo: Path = REPO_DIR
+) -> dict[str, tuple[str, str]]:
+    """{key: (the run's code, today's)} for each behaviour change the run's commit lacks."""
+    if not commit:
+        return {}
+    out = {}
+    for key, (change, sensor, _) in BEHAVIOUR_CHANGES.items():
+        if flat_config.get("sensor.name") != sensor:
+            continue
+        if contains(commit, change, repo) is False:
+            out[key] = (f"before@{change[:SHORT]}", f"since@{change[:SHORT]}")
+    return out
