@@ -40,6 +40,7 @@ from pathlib import Path
 from neuralfeels_sem.core.errors import DataError
 from neuralfeels_sem.eval.results_assets import assets_section
 from neuralfeels_sem.eval.results_bench import speed_section
+from neuralfeels_sem.eval.results_code import BEHAVIOUR_CHANGES
 from neuralfeels_sem.eval.results_drift import show
 from neuralfeels_sem.eval.results_generated import (
     evaluation_runs_at_defaults,
@@ -140,8 +141,16 @@ def drift_lines(runs: Sequence[Run]) -> list[str]:
             changed.setdefault(key, set()).add(f"{show(then)} (today {show(now)})")
     if not changed:
         return []
-    items = "; ".join(f"`{key}` {', '.join(sorted(v))}" for key, v in sorted(changed.items()))
+    items = "; ".join(
+        f"`{key}` {', '.join(sorted(v))}{what_changed(key)}" for key, v in sorted(changed.items())
+    )
     return [f"  - defaults changed since these runs, so shown as their settings: {items}"]
+
+
+def what_changed(key: str) -> str:
+    """` (what changed)` for a behaviour change without a config key (results_code.py)."""
+    change = BEHAVIOUR_CHANGES.get(key)
+    return f" ({change[2]})" if change else ""
 
 
 def source_lines(source: Source) -> list[str]:

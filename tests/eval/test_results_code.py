@@ -4,11 +4,13 @@ from __future__ import annotations
 
 import subprocess
 from pathlib import Path
+from types import SimpleNamespace
 
 import pytest
 
 from neuralfeels_sem.eval import results_code
 from neuralfeels_sem.eval.results_code import BEHAVIOUR_CHANGES, code_drift, contains
+from neuralfeels_sem.eval.results_page import drift_lines
 from neuralfeels_sem.utils.code_version import git_output
 from neuralfeels_sem.utils.paths import REPO_DIR
 
@@ -61,3 +63,12 @@ def test_every_listed_change_is_a_commit_of_this_repository() -> None:
         if found is None:
             pytest.skip("the checkout's history is too shallow to hold the change")
         assert found, f"{key}: {change} is not in this checkout's history"
+
+
+def test_the_page_says_what_a_keyless_change_changed() -> None:
+    change, _, what = BEHAVIOUR_CHANGES["sim.rig"]
+    then, now = f"before@{change[:7]}", f"since@{change[:7]}"
+    run = SimpleNamespace(drift={"sim.rig": (then, now), "sensor.duration_s": (20.0, 30.0)})
+    (line,) = drift_lines([run])
+    assert f"`sim.rig` {then} (today {now}) ({what})" in line
+    assert "`sensor.duration_s` 20.0 (today 30.0);" in line  # a config key needs no words
