@@ -13,7 +13,7 @@ from __future__ import annotations
 
 from functools import cache
 from pathlib import Path
-from typing import Any
+from typing import Any, NamedTuple
 
 from neuralfeels_sem.utils.code_version import git_output
 from neuralfeels_sem.utils.paths import REPO_DIR
@@ -21,12 +21,17 @@ from neuralfeels_sem.utils.paths import REPO_DIR
 SHORT = 7  # hex digits of a commit shown, as git abbreviates
 
 
-# key -> (the commit that changed the behaviour, the sensor it applies to, what changed)
-BEHAVIOUR_CHANGES: dict[str, tuple[str, str, str]] = {
-    "sim.rig": (
-        "bebc0c69274aea2fed0ab7a5257243fb508a3b84",
-        "sim",
-        "no finger ends a step inside the object deeper than a gel can be pressed",
+class BehaviourChange(NamedTuple):
+    commit: str  # the commit that changed the behaviour (40 hex digits)
+    sensor: str  # the sensor whose runs it changes (config sensor.name)
+    what: str  # what changed, as the results page says it
+
+
+BEHAVIOUR_CHANGES: dict[str, BehaviourChange] = {
+    "sim.rig": BehaviourChange(
+        commit="bebc0c69274aea2fed0ab7a5257243fb508a3b84",
+        sensor="sim",
+        what="no finger ends a step inside the object deeper than a gel can be pressed",
     ),
 }
 
@@ -47,9 +52,10 @@ def code_drift(
     if not commit:
         return {}
     out = {}
-    for key, (change, sensor, _) in BEHAVIOUR_CHANGES.items():
-        if flat_config.get("sensor.name") != sensor:
+    for key, change in BEHAVIOUR_CHANGES.items():
+        if flat_config.get("sensor.name") != change.sensor:
             continue
-        if contains(commit, change, repo) is False:
-            out[key] = (f"before@{change[:SHORT]}", f"since@{change[:SHORT]}")
+        if contains(commit, change.commit, repo) is False:
+            short = change.commit[:SHORT]
+            out[key] = (f"before@{short}", f"since@{short}")
     return out

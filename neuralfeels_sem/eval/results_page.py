@@ -150,7 +150,7 @@ def drift_lines(runs: Sequence[Run]) -> list[str]:
 def what_changed(key: str) -> str:
     """` (what changed)` for a behaviour change without a config key (results_code.py)."""
     change = BEHAVIOUR_CHANGES.get(key)
-    return f" ({change[2]})" if change else ""
+    return f" ({change.what})" if change else ""
 
 
 def source_lines(source: Source) -> list[str]:

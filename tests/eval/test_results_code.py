@@ -9,7 +9,12 @@ from types import SimpleNamespace
 import pytest
 
 from neuralfeels_sem.eval import results_code
-from neuralfeels_sem.eval.results_code import BEHAVIOUR_CHANGES, code_drift, contains
+from neuralfeels_sem.eval.results_code import (
+    BEHAVIOUR_CHANGES,
+    BehaviourChange,
+    code_drift,
+    contains,
+)
 from neuralfeels_sem.eval.results_page import drift_lines
 from neuralfeels_sem.utils.code_version import git_output
 from neuralfeels_sem.utils.paths import REPO_DIR
@@ -32,7 +37,9 @@ def history(tmp_path: Path, monkeypatch) -> tuple[str, str, str]:
     """Commits before, making and after a rig change, listed as today's only change."""
     subprocess.run(["git", "-C", str(tmp_path), "init", "-q"], check=True)
     before, change, after = (commit(tmp_path, m) for m in ("before", "fix", "after"))
-    monkeypatch.setattr(results_code, "BEHAVIOUR_CHANGES", {"sim.rig": (change, "sim", "fix")})
+    monkeypatch.setattr(
+        results_code, "BEHAVIOUR_CHANGES", {"sim.rig": BehaviourChange(change, "sim", "fix")}
+    )
     contains.cache_clear()
     return before, change, after
 
