@@ -14,7 +14,7 @@ have a ground truth:
 from __future__ import annotations
 
 from collections import defaultdict
-from collections.abc import Sequence
+from collections.abc import Mapping, Sequence
 
 import numpy as np
 
@@ -131,3 +131,35 @@ class ClassifierAccuracy:
             out["by_material"][class_names[gt]] = stats
             out["per_material"][class_names[gt]] = stats["accuracy"]
         return out
+
+
+def never_read(accuracy: Mapping, present: Sequence[str] | None) -> dict[str, str] | None:
+    """{material: why} for the materials in `present` (the ground truth's) that no touch
+    read rightly by its own label, in order of the first that holds:
+
+    - "never pressed": no touch had most of its contact on the material, so no finger
+      pressed a part of it squarely (the gait never reached it, or only its rim);
+    - "never labelled": pressed, but the classifier abstained on every such touch;
+    - "never read rightly": labelled, but always as another material.
+
+    `accuracy` is `ClassifierAccuracy.summary`'s. A touch's label is its imprint's main
+    reading: a press that reads a material on part of its imprint can still teach the map
+    it, so such a material is not always lost (read this beside the map's recall of it).
+    None where there is nothing to judge: no touch had a ground truth (a real rig, or no
+    touches), or no material is present (no matching samples).
+    """
+    by_material = accuracy.get("by_material")
+    if not present or by_material is None:
+        return None
+    if not accuracy.get("judged", 0) + accuracy.get("abstentions", 0):
+        return None
+    out = {}
+    for name in present:
+        stats = by_material.get(name) or {}
+        if not stats.get("touches"):
+            out[name] = "never pressed"
+        elif not stats.get("judged"):
+            out[name] = "never labelled"
+        elif not stats.get("correct"):
+            out[name] = "never read rightly"
+    return out

@@ -14,6 +14,7 @@ from __future__ import annotations
 
 from collections.abc import Sequence
 
+from neuralfeels_sem.eval.classifier_metrics import never_read
 from neuralfeels_sem.eval.results_pose import is_tracked
 from neuralfeels_sem.eval.results_runs import Run, Source, get
 from neuralfeels_sem.eval.results_tables import (
@@ -120,6 +121,32 @@ def mean_class_cell(runs: Sequence[Run]) -> str:
     return f"{fmt(mean(values))} ({', '.join(fmt(v) for v in values)})"
 
 
+def never_read_cell(runs: Sequence[Run]) -> str:
+    """The materials some run's touches never read rightly, with why, the run's mapping
+    seed and the map's recall of the material in that run ("wood: never pressed (seed 1,
+    map 0.0 %)"); "none" when every run's touches read every material, "-" when no run's
+    touches had a ground truth. From each run's classifier tallies, so runs scored before
+    metrics.json carried `materials_never_read` get it too."""
+    judged, parts = False, []
+    for run in runs:
+        recall = get(run.metrics, "matching_per_class") or {}
+        missed = never_read(get(run.metrics, "classifier_accuracy") or {}, list(recall))
+        judged |= missed is not None
+        parts += [
+            f"{name}: {why} (seed {run.seed}, map {fmt(recall[name])} %)"
+            for name, why in (missed or {}).items()
+        ]
+    return "; ".join(parts) or ("none" if judged else "-")
+
+
+def missed_runs_cell(runs: Sequence[Run]) -> str:
+    """How many of the runs that could be judged name a material in never_read_cell
+    ("1 of 40 runs"); "-" when none could."""
+    cells = [never_read_cell([run]) for run in runs]
+    judged = [c for c in cells if c != "-"]
+    return f"{sum(c != 'none' for c in judged)} of {len(judged)} runs" if judged else "-"
+
+
 def object_rows(runs: Sequence[Run]) -> list[list[str]]:
     rows = []
     for seed, members in by_object(runs).items():
@@ -132,6 +159,7 @@ def object_rows(runs: Sequence[Run]) -> list[list[str]]:
                 mean_class_cell(members),
                 floor,
                 *(fmt(mean(values_of(members, k, s)), d) for k, s, d in FIGURES),
+                never_read_cell(members),
             ]
         )
     return rows
@@ -153,7 +181,7 @@ def over_objects(runs: Sequence[Run]) -> list[str]:
 
 def summary_row(runs: Sequence[Run]) -> list[str]:
     mean_class, floor, *figures = over_objects(runs)
-    return ["**mean**", "", "", str(len(runs)), mean_class, floor, *figures]
+    return ["**mean**", "", "", str(len(runs)), mean_class, floor, *figures, missed_runs_cell(runs)]
 
 
 OBJECT_HEADER = [
@@ -164,6 +192,7 @@ OBJECT_HEADER = [
     "mean-class %",
     "majority map % (material)",
     *FIGURE_HEADER,
+    "never read rightly",
 ]
 
 
@@ -246,7 +275,11 @@ INTRO = [
     "never to choose settings; seeds below are for development. Per object: mean-class",
     "matching beside the majority map, the classifier's accuracy on judged touches and its",
     "coverage (share of touches given a label), and `auroc`, how well the map's entropy marks",
-    "where it is wrong ([uncertainty](#uncertainty-of-the-material-map)).",
+    "where it is wrong ([uncertainty](#uncertainty-of-the-material-map)); last, each material",
+    "that no touch of some run read rightly by its label, and why (never pressed squarely by a",
+    "finger, pressed but never labelled: the classifier abstained, or only read as another",
+    "material), with the map's recall of it in that run: a press that reads a material on",
+    "part of its imprint can still teach the map it, so read the two together.",
 ]
 
 

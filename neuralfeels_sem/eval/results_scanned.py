@@ -17,6 +17,8 @@ from neuralfeels_sem.eval.results_generated import (
     FLOOR,
     MEAN_CLASS,
     TARGET_PCT,
+    missed_runs_cell,
+    never_read_cell,
 )
 from neuralfeels_sem.eval.results_pose import is_tracked
 from neuralfeels_sem.eval.results_runs import OBJECT_LAYOUT, Run, Source, get
@@ -30,6 +32,7 @@ HEADER = [
     "mean-class %",
     "majority map % (material)",
     *FIGURE_HEADER,
+    "never read rightly",
 ]
 
 
@@ -75,6 +78,7 @@ def layout_rows(runs: Sequence[Run]) -> tuple[list[list[str]], dict[tuple[str, i
                 T.fmt(per_layout[(mesh, seed)]),
                 T.majority_cells(members)[0],
                 *(T.fmt(T.mean(T.values_of(members, k, s)), d) for k, s, d in FIGURES),
+                never_read_cell(members),
             ]
         )
     return rows, per_layout
@@ -90,6 +94,7 @@ def setting_table(runs: Sequence[Run]) -> list[str]:
         f"**{T.mean_std(list(scored.values()))}**",
         T.fmt(T.mean(T.values_of(runs, FLOOR))),
         *(T.mean_std(T.values_of(runs, k, s), d) for k, s, d in FIGURES),
+        missed_runs_cell(runs),
     ]
     return [
         f"Setting: {setting_text(runs[0])}. Mean-class matching at or above "
@@ -104,7 +109,8 @@ INTRO = [
     "`object.layout_seed=K` (the generated objects' kind of layout; see",
     "[objects](objects.md#your-own-mesh-objectcustom)): shapes and layouts no setting was",
     "tuned on, run to report. Per mesh and layout the same figures as for the generated",
-    "objects; the mean is over layouts (the majority map's over runs).",
+    "objects, the materials some run's touches never read rightly among them; the mean is",
+    "over layouts (the majority map's over runs).",
 ]
 
 

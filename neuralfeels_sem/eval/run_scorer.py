@@ -22,7 +22,7 @@ from torch import nn
 from neuralfeels_sem.core.errors import NoDataError
 from neuralfeels_sem.core.frame import Frame
 from neuralfeels_sem.core.geometry import transform_points
-from neuralfeels_sem.eval.classifier_metrics import ClassifierAccuracy, gt_material_of
+from neuralfeels_sem.eval.classifier_metrics import ClassifierAccuracy, gt_material_of, never_read
 from neuralfeels_sem.eval.image_matching import ImageMatcher
 from neuralfeels_sem.eval.matching import MatchingEvaluator
 from neuralfeels_sem.eval.mesh_transfer import labels_from_mesh
@@ -272,6 +272,9 @@ class RunScorer:
         metrics["matching_mean_class_curve"] = self.mean_class_curve
         metrics["uncertainty"] = self.uncertainty(field, field_T_gt)
         metrics["classifier_accuracy"] = self.classifier_accuracy()
+        metrics["materials_never_read"] = never_read(
+            metrics["classifier_accuracy"], list(final.get("matching_per_class") or {})
+        )
         metrics["baseline_majority"] = majority
         metrics["baseline"] = {k: baseline.get(k) for k in RUN_MATCHING_KEYS + SHAPE_KEYS[:2]}
         metrics["margin_over_majority"] = {
@@ -279,7 +282,15 @@ class RunScorer:
             for key in ("matching_mean_class_pct", "matching_pct", "matching_mesh_pct")
             if final.get(key) is not None and key in majority
         }
-        metrics["notes"] = self.notes + final["notes"]
+        recall = final.get("matching_per_class") or {}
+        metrics["notes"] = (
+            self.notes
+            + final["notes"]
+            + [
+                f"no touch read {name} rightly ({why}); the map's recall of it {recall[name]:.1f} %"
+                for name, why in (metrics["materials_never_read"] or {}).items()
+            ]
+        )
         return metrics, mesh
 
     # ---------------------------------------------------------------- resume

@@ -9,7 +9,7 @@ from neuralfeels_sem.core.digit import DIGIT_HEIGHT, DIGIT_WIDTH
 from neuralfeels_sem.core.frame import TactileReading
 from neuralfeels_sem.core.geometry import Intrinsics
 from neuralfeels_sem.core.materials import DEFAULT_MATERIALS
-from neuralfeels_sem.eval.classifier_metrics import ClassifierAccuracy, gt_material_of
+from neuralfeels_sem.eval.classifier_metrics import ClassifierAccuracy, gt_material_of, never_read
 
 CLASSES = list(DEFAULT_MATERIALS)
 
@@ -137,3 +137,25 @@ def test_gt_material_is_none_without_contact_or_ground_truth() -> None:
     mask[5, 5] = True
     material[5, 5] = -1
     assert gt_material_of(reading(mask, material)) is None
+
+
+def test_never_read_names_each_material_no_touch_read_rightly_and_why() -> None:
+    acc = ClassifierAccuracy()
+    for finger, predicted, gt in [
+        ("index", 0, 0),  # plastic: read rightly
+        ("ring", -1, 1),  # metal: pressed, abstained
+        ("thumb", 0, 3),  # wood: read as plastic
+        ("middle", 2, None),  # no ground truth: says nothing about fabric
+    ]:
+        acc.update(finger, predicted, gt)
+    summary = acc.summary(CLASSES)
+    assert never_read(summary, CLASSES) == {
+        "metal": "never labelled",
+        "fabric": "never pressed",
+        "wood": "never read rightly",
+    }
+    assert never_read(summary, ["plastic"]) == {}
+    assert never_read(summary, []) is None  # no material present: no matching samples
+    nothing = ClassifierAccuracy()
+    nothing.update("index", 0, None)  # a real rig: no touch has a ground truth
+    assert never_read(nothing.summary(CLASSES), CLASSES) is None

@@ -37,10 +37,31 @@ def test_generated_objects_get_a_row_each_a_mean_and_the_share_at_the_target(
     assert "evaluation objects. Mean-class matching at or above 80 %: 2 of 3 objects" in part
     assert "lowest 70.0 (seed 1001)" in part
     row = cells(part, "1001")
-    assert row[1:] == ["boxy, 9 cm", "2: band", "1", "70.0", "50.0 (wood)", "95.0", "60.0", "0.80"]
+    assert row[1:] == [
+        "boxy, 9 cm", "2: band", "1", "70.0", "50.0 (wood)", "95.0", "60.0", "0.80", "-",
+    ]  # fmt: skip
     assert cells(part, "**mean**")[4] == "**82.0 ± 10.6**"
     # Their own section only: not a settings table, not the uncertainty table.
     assert "object.seed" not in section(page, "Other settings")
+
+
+def test_a_material_a_run_never_read_rightly_is_named_with_why_and_its_seed(
+    tmp_path: Path,
+) -> None:
+    sweep = tmp_path / "multirun" / "unseen"
+    wood_read = {"touches": 5, "judged": 4, "correct": 4}
+    for seed, wood in enumerate([wood_read, None]):
+        metrics = generated_metrics(1003, 90.0 if wood else 50.0, 0.8)
+        metrics["matching_per_class"] = {"metal": 99.0, "wood": 80.0 if wood else 0.0}
+        by_material = {"metal": {"touches": 9, "judged": 9, "correct": 9}}
+        by_material.update({"wood": wood} if wood else {})
+        metrics["classifier_accuracy"].update(by_material=by_material, judged=13, abstentions=1)
+        overrides = ["object=random", "object.seed=1003", f"seed={seed}"]
+        write_job(sweep, str(seed), overrides, metrics)
+    part = section(generate(tmp_path, sweep), "Generated objects")
+    assert cells(part, "1003")[4] == "70.0 (90.0, 50.0)"
+    assert cells(part, "1003")[-1] == "wood: never pressed (seed 1, map 0.0 %)"
+    assert cells(part, "**mean**")[-1] == "1 of 2 runs"
 
 
 def test_settings_on_the_same_objects_are_compared_on_the_objects_both_ran(

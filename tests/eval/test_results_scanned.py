@@ -35,8 +35,9 @@ def test_scanned_meshes_get_a_row_per_layout_a_mean_and_the_lowest(tmp_path: Pat
     assert "at or above 80 %: 2 of 3 layouts; lowest 75.0 (MustardBottle, layout 1)" in part
     row = cells(part, "FoamBrick")
     assert row[1:] == ["19 cm", "0", "3: half, insert", "1", "95.0", "33.3 (metal)", "97.0",
-                       "70.0", "0.90"]  # fmt: skip
+                       "70.0", "0.90", "-"]  # fmt: skip
     assert cells(part, "**mean**")[5] == "**87.0 ± 10.6**"
+    assert cells(part, "**mean**")[-1] == "-"  # no run's touches had a ground truth
     # Their own section only: neither a settings table nor the generated objects'.
     assert "layout_seed" not in section(page, "Other settings")
     assert "## Generated objects" not in page

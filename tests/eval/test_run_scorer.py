@@ -91,6 +91,29 @@ def test_final_metrics_carry_curves_margins_and_baselines(scorer: RunScorer) -> 
     assert state["mean_class_curve"] == metrics["matching_mean_class_curve"]
 
 
+def test_a_material_no_touch_read_rightly_is_named_in_the_metrics_and_notes(
+    scorer: RunScorer,
+) -> None:
+    """plastic (0) and fabric (2) are on the sphere: fabric only abstained on -> named."""
+    saved = scorer.touch_log
+    try:
+        scorer.touch_log = [[0, "index", 0, 0, 0.9, 0, ""], [1, "ring", -1, 2, 0.6, 2, "edge"]]
+        metrics, _ = scorer.final_metrics(SphereField(), 1.2 * RADIUS, {})
+        assert metrics["materials_never_read"] == {"fabric": "never labelled"}
+        recall = metrics["matching_per_class"]["fabric"]
+        note = (
+            f"no touch read fabric rightly (never labelled); the map's recall of it {recall:.1f} %"
+        )
+        assert note in metrics["notes"]
+        # No touch with a ground truth (a real rig): nothing to judge, no note.
+        scorer.touch_log = [[0, "index", 0, -1, 0.9, 0, ""]]
+        metrics, _ = scorer.final_metrics(SphereField(), 1.2 * RADIUS, {})
+        assert metrics["materials_never_read"] is None
+        assert not any(note.startswith("no touch read") for note in metrics["notes"])
+    finally:
+        scorer.touch_log = saved
+
+
 def test_a_failed_extraction_keeps_every_other_figure(scorer: RunScorer, monkeypatch) -> None:
     def broken(*args, **kwargs):
         raise ValueError("marching cubes ran out of patience")
