@@ -105,6 +105,7 @@ def test_wrong_type_fails_at_compose() -> None:
         ["mapping.mapper.label_vote_support_radius=-0.01"],
         ["sensor.alternate_axis=[0,0,0]"],
         ["sensor.alternate_every_s=0"],
+        ["sensor.grasp_height=low"],
         ["eval.mesh_match_tolerance_m=0"],
         ["eval.mesh_match_tolerance_m=-0.005"],
         ["eval.mesh_match_tolerance_m=nan"],
@@ -162,6 +163,7 @@ def test_the_default_sim_motion_is_the_one_bench_and_rig_touches_use() -> None:
         "wobble_deg": sensor.wobble_deg,
         "alternate_axis": list(sensor.alternate_axis),
         "alternate_every_s": sensor.alternate_every_s,
+        "grasp_height": sensor.grasp_height,
     }
     rig = SimRig(two_material_sphere(0.04), **motion)
     rig.open()

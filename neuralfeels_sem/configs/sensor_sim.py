@@ -13,6 +13,7 @@ from neuralfeels_sem.sensors.sim.sim_sensor import POLICIES
 from neuralfeels_sem.sim.depth_noise import DEPTH_NOISE_MODELS, RealSenseNoiseConfig
 from neuralfeels_sem.sim.felt_material import check_ignored_faces
 from neuralfeels_sem.sim.touch_planner import TouchPlannerConfig
+from neuralfeels_sem.sim.trajectory import GRASP_HEIGHTS
 
 
 def _check_firmness(name: str, firmness: dict[str, float]) -> None:
@@ -97,6 +98,11 @@ class SimSensorConfig:
     # alternate_every_s each; null: one axis, so only a band round the object is touched.
     alternate_axis: list[float] | None = field(default_factory=lambda: [0.0, 1.0, 0.0])
     alternate_every_s: float = 5.0
+    # fixed: the object's centre held as high above the palm as its most upright
+    # orientation needs; follow: it rests as low as its current orientation allows, so a
+    # long object lying flat sits between the fingers rather than above their pads
+    # (sim/trajectory.py RestHeight, docs/simulation.md).
+    grasp_height: str = "fixed"
     gait_period_s: float = 1.2  # one contact-lift-move-touch cycle per finger
     contact_fraction: float = 0.75  # share of the cycle in contact
     # Press depth per finger in mm; the paper saw weaker thumb contact.
@@ -141,6 +147,10 @@ class SimSensorConfig:
             )
         if self.alternate_every_s <= 0:
             raise ValueError(f"sensor.alternate_every_s={self.alternate_every_s} must be > 0")
+        if self.grasp_height not in GRASP_HEIGHTS:
+            raise ValueError(
+                f"sensor.grasp_height={self.grasp_height!r}: use one of {', '.join(GRASP_HEIGHTS)}"
+            )
         if self.gait_period_s <= 0:
             raise ValueError(f"sensor.gait_period_s={self.gait_period_s} must be > 0")
         if not 0.0 < self.contact_fraction < 1.0:
@@ -155,6 +165,7 @@ class SimSensorConfig:
             "wobble_deg": self.wobble_deg,
             "alternate_axis": None if self.alternate_axis is None else list(self.alternate_axis),
             "alternate_every_s": self.alternate_every_s,
+            "grasp_height": self.grasp_height,
         }
 
 

@@ -59,7 +59,7 @@ from neuralfeels_sem.sim.rig_params import (
 from neuralfeels_sem.sim.rig_probes import GEL_GRID_RAYS, RigProbes
 from neuralfeels_sem.sim.scene import SimScene
 from neuralfeels_sem.sim.touch_planner import TouchPlanner
-from neuralfeels_sem.sim.trajectory import ObjectTrajectory
+from neuralfeels_sem.sim.trajectory import GRASP_HEIGHTS, ObjectTrajectory, RestHeight
 
 
 @dataclass
@@ -93,6 +93,7 @@ class SimRig(ContactSampler, FingerControl, RigProbes):
         alternate_axis: Sequence[float] | None = None,
         alternate_every_s: float = 5.0,
         planner: TouchPlanner | None = None,
+        grasp_height: str = "fixed",
     ) -> None:
         unknown = set(fingers) - set(FINGERS)
         if unknown or not fingers:
@@ -115,6 +116,12 @@ class SimRig(ContactSampler, FingerControl, RigProbes):
         self._world_T_palm, self._world_T_camera = world_T_palm, world_T_camera
         self.seed = seed
         self.planner = planner  # sensor.policy=active: touches ranked by the map's advice
+        if grasp_height not in GRASP_HEIGHTS:
+            raise ValueError(
+                f"grasp_height={grasp_height!r}: use one of {', '.join(GRASP_HEIGHTS)}"
+            )
+        # fixed: the centre high enough for any orientation; follow: as low as each allows
+        self.grasp_height = grasp_height
         self.scene: SimScene | None = None
 
     # ------------------------------------------------------------------ set-up
@@ -145,6 +152,7 @@ class SimRig(ContactSampler, FingerControl, RigProbes):
             seed=self.seed,
             alternate_axis=self.alternate_axis,
             alternate_every_s=self.alternate_every_s,
+            rest=self._rest_height(palm),
         )
         self.regrasp_reasons: list[str] = []  # beside trajectory.regrasps: why each was due
         self.policy = GaitingPolicy(
@@ -179,21 +187,38 @@ class SimRig(ContactSampler, FingerControl, RigProbes):
         """Between the middle finger's and the thumb's natural pads, clear of the palm.
 
         The object's lowest point must clear the palm face: its half extent along the palm
-        normal if it only turns about that normal (else its bounding radius), plus wobble room.
+        normal if it only turns about that normal (else its bounding radius), plus wobble
+        room. With grasp_height=follow the centre stays at the pads' height and the
+        trajectory lifts the object as each orientation needs (_rest_height).
         """
         up, across = palm[:3, 0], palm[:3, 1]
         axes = [self.axis] + ([] if self.alternate_axis is None else [self.alternate_axis])
         upright = all(abs(a @ up) > 0.99 * np.linalg.norm(a) for a in axes)
         verts = np.asarray(self.obj.mesh.vertices)
         half_up = float(np.abs(verts @ up).max()) if upright else self.obj.bounds_radius
-        wobble_room = np.sin(np.deg2rad(self.wobble_deg)) * self.obj.bounds_radius
         middle = self.nominal["middle"][0]
         centre = 0.5 * (middle + self.nominal["thumb"][0])
         centre -= ((centre - middle) @ across) * across  # centred on the middle finger
-        palm_face = palm[:3, 3] + PALM_FACE_X * up
         centre += GRASP_REACH_M * palm[:3, 2]
-        lowest = PALM_CLEARANCE_M + half_up + wobble_room
-        return centre + max(0.0, lowest - (centre - palm_face) @ up) * up
+        if self.grasp_height == "follow":
+            return centre
+        lowest = half_up + self._palm_room(palm)
+        return centre + max(0.0, lowest - (centre - self._palm_face(palm)) @ up) * up
+
+    def _palm_face(self, palm: np.ndarray) -> np.ndarray:
+        return palm[:3, 3] + PALM_FACE_X * palm[:3, 0]
+
+    def _palm_room(self, palm: np.ndarray) -> float:
+        """Clearance the object's lowest point keeps from the palm face, wobble included."""
+        return PALM_CLEARANCE_M + np.sin(np.deg2rad(self.wobble_deg)) * self.obj.bounds_radius
+
+    def _rest_height(self, palm: np.ndarray) -> RestHeight | None:
+        """grasp_height=follow: the lift that keeps each orientation's lowest point clear."""
+        if self.grasp_height != "follow":
+            return None
+        room = float((self.centre - self._palm_face(palm)) @ palm[:3, 0]) - self._palm_room(palm)
+        hull = np.asarray(self.obj.mesh.convex_hull.vertices)
+        return RestHeight(hull, palm[:3, 0], room)
 
     def _regrasp(self, t: float) -> None:
         """Turn and slide the object in the grasp as the planner asks (sensor.policy=active).

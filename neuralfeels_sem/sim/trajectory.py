@@ -13,6 +13,11 @@ stretch at t: the object turns about `axis` from then on and its centre slides t
 `offset` from the grasp centre over `slide_s` (as a hand that regrasps an object larger
 than its reach). Poses already asked for never change: a regrasp starts no earlier than
 the latest time queried.
+
+With a `RestHeight` (sensor.grasp_height=follow) the centre also rises along the palm
+normal by just as much as the current orientation needs for the object's lowest point to
+clear the palm: an object lying flat rests low between the fingers instead of at the height
+its most upright orientation would need.
 """
 
 from __future__ import annotations
@@ -20,6 +25,9 @@ from __future__ import annotations
 import numpy as np
 
 from neuralfeels_sem.core.geometry import rotation_matrix
+
+# sensor.grasp_height: fixed (the centre as high as any orientation needs) | follow (RestHeight)
+GRASP_HEIGHTS = ("fixed", "follow")
 
 
 def perpendicular_basis(axis: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
@@ -30,6 +38,27 @@ def perpendicular_basis(axis: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
     u = np.cross(a, helper)
     u /= np.linalg.norm(u)
     return u, np.cross(a, u)
+
+
+class RestHeight:
+    """How far an orientation lifts the object's centre above the grasp centre.
+
+    `points`: (N, 3) object-frame points whose lowest one bounds the object (its convex
+    hull's vertices); `up`: the palm normal (world); `room`: how far below the grasp centre
+    the lowest point may reach (the palm face's clearance). lift(R) = max(0, depth - room)
+    with depth = how far the lowest point of the object turned by R lies below its centre.
+    """
+
+    def __init__(self, points: np.ndarray, up: np.ndarray, room: float) -> None:
+        self.points = np.asarray(points, np.float64).reshape(-1, 3)
+        if not len(self.points):
+            raise ValueError("RestHeight needs at least one object point")
+        self.up = np.asarray(up, np.float64) / np.linalg.norm(up)
+        self.room = float(room)
+
+    def lift(self, rotation: np.ndarray) -> float:
+        depth = float(np.max(-(self.points @ (rotation.T @ self.up))))
+        return max(0.0, depth - self.room)
 
 
 class ObjectTrajectory:
@@ -48,8 +77,10 @@ class ObjectTrajectory:
         alternate_axis: np.ndarray | None = None,
         alternate_every_s: float = 5.0,
         slide_s: float = 1.0,
+        rest: RestHeight | None = None,
     ) -> None:
         self.centre = np.asarray(centre, np.float64)
+        self.rest = rest
         axis = np.asarray(axis, np.float64)
         if self.centre.shape != (3,) or axis.shape != (3,) or np.linalg.norm(axis) < 1e-9:
             raise ValueError(
@@ -121,7 +152,7 @@ class ObjectTrajectory:
         for pose, t in zip(out, times):
             seg = self._segments[self._index(float(t))]
             pose[:3, :3] = rotation_matrix(seg.axis, self.speed * (t - seg.start_s)) @ seg.rotation
-            pose[:3, 3] = self.centre + self._offset(seg, float(t))
+            pose[:3, 3] = self.centre + self._offset(seg, float(t)) + self._lift(pose[:3, :3])
         return out
 
     def turn_poses(self, t0: float, axis: np.ndarray, ahead: np.ndarray) -> np.ndarray:
@@ -130,8 +161,10 @@ class ObjectTrajectory:
         start = self.steady_poses(np.array([t0]))[0]
         axis = np.asarray(axis, np.float64) / np.linalg.norm(axis)
         out = np.tile(start, (len(ahead), 1, 1))
+        base = start[:3, 3] - self._lift(start[:3, :3])
         for pose, tau in zip(out, ahead):
             pose[:3, :3] = rotation_matrix(axis, self.speed * float(tau)) @ start[:3, :3]
+            pose[:3, 3] = base + self._lift(pose[:3, :3])
         return out
 
     def turn(self, t: float, axis: np.ndarray) -> tuple[int, float]:
@@ -197,6 +230,10 @@ class ObjectTrajectory:
         w = w * w * (3.0 - 2.0 * w)
         return (1.0 - w) * seg.offset_from + w * seg.offset
 
+    def _lift(self, rotation: np.ndarray) -> np.ndarray:
+        """The centre's rise along the palm normal in an orientation (zero without a rest)."""
+        return np.zeros(3) if self.rest is None else self.rest.lift(rotation) * self.rest.up
+
     def pose(self, t: float) -> np.ndarray:
         seg = self._segments[self.segment(t)]
         turned = rotation_matrix(seg.axis, self.speed * (t - seg.start_s)) @ seg.rotation
@@ -207,7 +244,7 @@ class ObjectTrajectory:
         pose = np.eye(4)
         pose[:3, :3] = nod @ turned
         sway = self.sway_m * np.sin(1.3 * w + self._phase[2]) * self._u
-        pose[:3, 3] = self.centre + self._offset(seg, t) + sway
+        pose[:3, 3] = self.centre + self._offset(seg, t) + sway + self._lift(turned)
         return pose
 
 

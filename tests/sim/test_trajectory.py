@@ -5,7 +5,8 @@ from __future__ import annotations
 import numpy as np
 import pytest
 
-from neuralfeels_sem.sim.trajectory import ObjectTrajectory
+from neuralfeels_sem.core.geometry import rotation_matrix
+from neuralfeels_sem.sim.trajectory import ObjectTrajectory, RestHeight
 
 
 @pytest.mark.parametrize("axis", [(0.0, 0.0, 1.0), (1.0, 1.0, 0.0)])
@@ -83,3 +84,38 @@ def test_bad_alternate_axis_or_period_is_a_value_error() -> None:
         ObjectTrajectory(np.zeros(3), (0, 0, 1), alternate_axis=(0.0, 0.0, 0.0))
     with pytest.raises(ValueError, match="alternate_every_s"):
         ObjectTrajectory(np.zeros(3), (0, 0, 1), alternate_axis=(1, 0, 0), alternate_every_s=0.0)
+
+
+def test_rest_height_lifts_a_bar_only_as_far_as_its_orientation_needs() -> None:
+    """A 20 x 4 x 4 cm bar along y, 3 cm of room below the centre: flat it needs none, stood
+    on end 10 cm (7 cm of lift), at 30 degrees 10 sin 30 + 2 cos 30 cm."""
+    corners = np.array(
+        [[x, y, z] for x in (-0.02, 0.02) for y in (-0.1, 0.1) for z in (-0.02, 0.02)]
+    )
+    rest = RestHeight(corners, np.array([0.0, 0.0, 2.0]), room=0.03)
+    assert rest.lift(np.eye(3)) == 0.0
+    x = np.array([1.0, 0.0, 0.0])
+    assert rest.lift(rotation_matrix(x, np.pi / 2)) == pytest.approx(0.07)
+    tilted = 0.1 * np.sin(np.pi / 6) + 0.02 * np.cos(np.pi / 6) - 0.03
+    assert rest.lift(rotation_matrix(x, np.pi / 6)) == pytest.approx(tilted)
+    with pytest.raises(ValueError, match="at least one"):
+        RestHeight(np.zeros((0, 3)), np.array([0.0, 0.0, 1.0]), 0.0)
+
+
+def test_the_pose_and_its_previews_carry_the_rest_lift() -> None:
+    """Turning the bar about x stands it up: the centre rises by the lift, in pose(t), in
+    steady_poses and in turn_poses alike."""
+    corners = np.array(
+        [[x, y, z] for x in (-0.02, 0.02) for y in (-0.1, 0.1) for z in (-0.02, 0.02)]
+    )
+    up = np.array([0.0, 0.0, 1.0])
+    rest = RestHeight(corners, up, room=0.03)
+    centre = np.array([0.0, 0.0, 0.3])
+    traj = ObjectTrajectory(centre, (1, 0, 0), 30.0, wobble_deg=0.0, sway_m=0.0, rest=rest)
+    for t in (0.0, 1.0, 3.0):
+        pose = traj.pose(t)
+        np.testing.assert_allclose(pose[:3, 3], centre + rest.lift(pose[:3, :3]) * up)
+        np.testing.assert_allclose(traj.steady_poses(np.array([t]))[0], pose, atol=1e-12)
+    assert traj.pose(3.0)[2, 3] == pytest.approx(0.37)  # on end after 90 degrees
+    ahead = traj.turn_poses(0.0, np.array([1.0, 0.0, 0.0]), np.array([3.0]))[0]
+    np.testing.assert_allclose(ahead, traj.pose(3.0), atol=1e-12)

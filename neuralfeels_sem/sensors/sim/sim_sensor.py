@@ -52,6 +52,7 @@ class SimSensor(IndexedSensor):
         rotation_axis, rotation_speed_deg_s, wobble_deg: the object's motion.
         alternate_axis, alternate_every_s: the object turns about rotation_axis and
             alternate_axis in turn, alternate_every_s seconds each (None: one axis).
+        grasp_height: fixed | follow, how high the object sits above the palm (SimRig).
         gait_period_s, contact_fraction: finger gaiting cycle.
         firmness_mm: press depth per finger (thumb weaker by default, as in the paper).
         tactile: DigitRenderer options (background, noise_std, texture_scale, ...).
@@ -77,6 +78,7 @@ class SimSensor(IndexedSensor):
         wobble_deg: float = 4.0,
         alternate_axis: Sequence[float] | None = (0.0, 1.0, 0.0),
         alternate_every_s: float = 5.0,
+        grasp_height: str = "fixed",
         gait_period_s: float = 1.2,
         contact_fraction: float = 0.75,
         firmness_mm: dict[str, float] | None = None,
@@ -110,6 +112,7 @@ class SimSensor(IndexedSensor):
         self.rotation_speed, self.wobble_deg = float(rotation_speed_deg_s), float(wobble_deg)
         self.alternate_axis = None if alternate_axis is None else tuple(map(float, alternate_axis))
         self.alternate_every_s = float(alternate_every_s)
+        self.grasp_height = grasp_height
         self.gait_period_s, self.contact_fraction = float(gait_period_s), float(contact_fraction)
         firmness = dict(DEFAULT_FIRMNESS_MM)
         firmness.update(firmness_mm or {})
@@ -149,6 +152,7 @@ class SimSensor(IndexedSensor):
             wobble_deg=self.wobble_deg,
             alternate_axis=self.alternate_axis,
             alternate_every_s=self.alternate_every_s,
+            grasp_height=self.grasp_height,
             press_depth_m={f: v / 1000.0 for f, v in self.firmness_mm.items()},
             period_s=self.gait_period_s,
             contact_fraction=self.contact_fraction,
