@@ -41,6 +41,7 @@ from neuralfeels_sem.objects.material_object import MaterialObject
 from neuralfeels_sem.objects.procedural import RECIPES
 from neuralfeels_sem.objects.random_object import make_random_object
 from neuralfeels_sem.sim.rig import SimRig
+from neuralfeels_sem.sim.trajectory import GRASP_HEIGHTS
 
 CLASSES = tuple(DEFAULT_MATERIALS)
 MIN_PIXELS = 50  # contact pixels (of 76,800) for a frame to count as a touch
@@ -275,10 +276,15 @@ def main(argv: list[str] | None = None) -> None:
     parser.add_argument(
         "--one-axis", action="store_true", help="turn about rotation_axis only (no alternate axis)"
     )
+    parser.add_argument(
+        "--grasp-height", choices=GRASP_HEIGHTS, help="sensor.grasp_height (default: the config's)"
+    )
     args = parser.parse_args(argv)
     motion = SimSensorConfig().rig_motion()  # the default sensor=sim motion
     if args.one_axis:
         motion["alternate_axis"] = None
+    if args.grasp_height:
+        motion["grasp_height"] = args.grasp_height
     try:
         objects = [_object(name) for name in args.objects]
     except (ValueError, ConfigError) as error:

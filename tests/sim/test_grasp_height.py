@@ -2,6 +2,8 @@
 
 from __future__ import annotations
 
+import json
+
 import numpy as np
 import pytest
 import trimesh
@@ -63,3 +65,16 @@ def test_an_unknown_grasp_height_is_refused() -> None:
     cube = MaterialObject("cube", mesh, np.zeros(len(mesh.faces), int), CLASSES)
     with pytest.raises(ValueError, match="grasp_height='low'"):
         SimRig(cube, grasp_height="low")
+
+
+def test_finger_contacts_bench_measures_either_grasp_height(tmp_path, capsys) -> None:
+    from neuralfeels_sem.bench.finger_contacts import main
+
+    out = tmp_path / "contacts.json"
+    argv = ["--objects", "random:109", "--no-render", "--duration", "1", "--json", str(out)]
+    main([*argv, "--grasp-height", "follow"])
+    report = json.loads(out.read_text())[0]
+    assert report["object"] == "random_109" and report["frames"] == 10
+    with pytest.raises(SystemExit):
+        main([*argv, "--grasp-height", "low"])
+    assert "invalid choice: 'low'" in capsys.readouterr().err
