@@ -221,4 +221,34 @@ def test_the_readme_states_the_evaluation_set_at_todays_defaults(tmp_path: Path)
     # objects 1000 (74.0) and 1001 (91.0): mean 82.5; majority map 50.0
     assert "**82.5 %** mean-class on average against 50.0 % for the majority map" in sentence
     assert "3 of 4 runs at or above 80 %, the lowest object 74.0 % (seed 1000)." in sentence
+    assert "runs below" not in sentence  # no touches to judge in these runs: nothing said
     assert sentence.rstrip().endswith(".*") and "*Runs: " in sentence
+
+
+def test_the_summary_says_which_runs_below_the_target_lost_a_material_and_why() -> None:
+    from neuralfeels_sem.eval.results_generated import lost_materials_text
+    from neuralfeels_sem.eval.results_runs import Run
+
+    def run(mean_class: float, wood_recall: float, wood: dict | None) -> Run:
+        by_material = {"metal": {"touches": 9, "judged": 9, "correct": 9}}
+        by_material.update({"wood": wood} if wood else {})
+        metrics = {
+            "matching_mean_class_pct": mean_class,
+            "matching_per_class": {"metal": 99.0, "wood": wood_recall},
+            "classifier_accuracy": {"by_material": by_material, "judged": 9, "abstentions": 1},
+        }
+        return Run(path=Path("run"), overrides={}, metrics=metrics, config={})
+
+    abstained = {"touches": 2, "judged": 0, "correct": 0}
+    runs = [
+        run(50.0, 0.0, None),  # lost, never pressed
+        run(55.0, 10.0, abstained),  # lost, never labelled
+        run(75.0, 60.0, abstained),  # below the target, but wood mapped from patch readings
+        run(95.0, 90.0, None),  # at the target: not counted
+    ]
+    text = lost_materials_text(runs)
+    assert text == (
+        " Of the 3 runs below 80 %, 2 lost a material no touch read rightly"
+        " (1 never pressed, 1 never labelled)."
+    )
+    assert lost_materials_text(runs[3:]) == ""
