@@ -331,9 +331,10 @@ LOST_RECALL_PCT = 50.0  # a material the map recalls less than this counts as lo
 
 
 def lost_materials_text(runs: Sequence[Run]) -> str:
-    """ " Of the 3 runs below 80 %, 3 lost a material no touch read rightly (2 never
-    pressed, 1 never labelled)." (a material lost: the map recalls under LOST_RECALL_PCT of
-    it); "" when no run is below the target or none of them has touches to judge."""
+    """What the runs below the target lost: 'Of the 3 runs below 80 %, 3 lost a material no
+    touch read rightly (2 never pressed, 1 never labelled).', with a leading space (a
+    material is lost when the map recalls under LOST_RECALL_PCT of it); empty when no run
+    is below the target or none of those has touches to judge."""
     low = [r for r in runs if (get(r.metrics, MEAN_CLASS) or 0.0) < TARGET_PCT]
     reasons: list[str] = []
     lost_runs = judged = 0

@@ -314,7 +314,11 @@ class ContactSampler:
         return self._libraries[key]
 
     def _profile(self, segment: int, axis: np.ndarray) -> tuple[int, np.ndarray, np.ndarray]:
-        """The swept solid of a segment: lowest height bin, per bin narrowest and widest radius."""
+        """The swept solid of a segment: lowest height bin, per bin narrowest and widest radius.
+
+        With sensor.grasp_height=follow the object also rises and falls within a segment;
+        the profile keeps its height at the segment's settled time (an approximation the
+        library's LIBRARY_OUTSIDE_M of slack absorbs only in part)."""
         if segment not in self._profiles:
             pose = self.trajectory.pose(self.trajectory.settled(segment))
             centre = self.trajectory.segment_centre(segment)
