@@ -38,7 +38,6 @@ from neuralfeels_sem.sim.rig_params import (
     PRESS_SHORTFALL_M,
     PRESS_TOLERANCE_M,
     PROFILE_BIN_M,
-    PROFILE_TURN_STEPS,
     RECENT,
     REST_Q,
     SAMPLE_BOX,
@@ -317,19 +316,13 @@ class ContactSampler:
     def _profile(self, segment: int, axis: np.ndarray) -> tuple[int, np.ndarray, np.ndarray]:
         """The swept solid of a segment: lowest height bin, per bin narrowest and widest radius.
 
-        With sensor.grasp_height=follow the object also rises and falls as it turns, so
-        the profile is that of every orientation of a whole turn (PROFILE_TURN_STEPS)."""
+        With sensor.grasp_height=follow the object also rises and falls within a segment;
+        the profile keeps its height at the segment's settled time (an approximation the
+        library's LIBRARY_OUTSIDE_M of slack absorbs only in part)."""
         if segment not in self._profiles:
-            start = self.trajectory.settled(segment)
+            pose = self.trajectory.pose(self.trajectory.settled(segment))
             centre = self.trajectory.segment_centre(segment)
-            verts = np.asarray(self.obj.mesh.vertices)
-            if self.trajectory.rest is None:  # turning about a fixed line: one pose will do
-                poses = self.trajectory.pose(start)[None]
-            else:
-                turn_s = 2.0 * np.pi / self.trajectory.speed
-                ahead = np.arange(PROFILE_TURN_STEPS) * turn_s / PROFILE_TURN_STEPS
-                poses = self.trajectory.turn_poses(start, axis, ahead)
-            rel = np.concatenate([verts @ p[:3, :3].T + p[:3, 3] - centre for p in poses])
+            rel = np.asarray(self.obj.mesh.vertices) @ pose[:3, :3].T + pose[:3, 3] - centre
             height = rel @ axis
             radial = rel - np.outer(height, axis)
             u, v = perpendicular_basis(axis)

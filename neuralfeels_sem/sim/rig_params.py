@@ -32,7 +32,6 @@ LIBRARY_TRIES = 2000  # box postures screened once per finger for ones near the 
 LIBRARY_INSIDE_M, LIBRARY_OUTSIDE_M = 0.003, 0.025
 MIN_LIBRARY = 32  # fewer screened postures than this: draw from the whole box
 PROFILE_BIN_M = 0.004  # height bins of the object's swept profile
-PROFILE_TURN_STEPS = 12  # orientations of a turn in the profile when the object rises and falls
 LOCAL_SHARE = 0.5  # share drawn around postures that touched before (narrow objects: few do)
 LOCAL_JITTER_RAD = 0.12
 MEMORY = 12  # touching postures remembered per finger
