@@ -122,30 +122,35 @@ def mean_class_cell(runs: Sequence[Run]) -> str:
     return f"{fmt(mean(values))} ({', '.join(fmt(v) for v in values)})"
 
 
+def run_never_read(run: Run) -> dict[str, tuple[str, float]] | None:
+    """{material: (why no touch read it rightly, the map's recall of it %)} for one run
+    (classifier_metrics.never_read on its classifier tallies, so runs scored before
+    metrics.json carried `materials_never_read` get it too); None: nothing to judge."""
+    recall = get(run.metrics, "matching_per_class") or {}
+    missed = never_read(get(run.metrics, "classifier_accuracy") or {}, list(recall))
+    return None if missed is None else {k: (why, recall[k]) for k, why in missed.items()}
+
+
 def never_read_cell(runs: Sequence[Run]) -> str:
     """The materials some run's touches never read rightly, with why, the run's mapping
     seed and the map's recall of the material in that run ("wood: never pressed (seed 1,
     map 0.0 %)"); "none" when every run's touches read every material, "-" when no run's
-    touches had a ground truth. From each run's classifier tallies, so runs scored before
-    metrics.json carried `materials_never_read` get it too."""
-    judged, parts = False, []
-    for run in runs:
-        recall = get(run.metrics, "matching_per_class") or {}
-        missed = never_read(get(run.metrics, "classifier_accuracy") or {}, list(recall))
-        judged |= missed is not None
-        parts += [
-            f"{name}: {why} (seed {run.seed}, map {fmt(recall[name])} %)"
-            for name, why in (missed or {}).items()
-        ]
+    touches had a ground truth."""
+    verdicts = [(run, run_never_read(run)) for run in runs]
+    parts = [
+        f"{name}: {why} (seed {run.seed}, map {fmt(recall)} %)"
+        for run, missed in verdicts
+        for name, (why, recall) in (missed or {}).items()
+    ]
+    judged = any(missed is not None for _, missed in verdicts)
     return "; ".join(parts) or ("none" if judged else "-")
 
 
 def missed_runs_cell(runs: Sequence[Run]) -> str:
     """How many of the runs that could be judged name a material in never_read_cell
     ("1 of 40 runs"); "-" when none could."""
-    cells = [never_read_cell([run]) for run in runs]
-    judged = [c for c in cells if c != "-"]
-    return f"{sum(c != 'none' for c in judged)} of {len(judged)} runs" if judged else "-"
+    judged = [missed for missed in map(run_never_read, runs) if missed is not None]
+    return f"{sum(bool(m) for m in judged)} of {len(judged)} runs" if judged else "-"
 
 
 def object_rows(runs: Sequence[Run]) -> list[list[str]]:
@@ -336,17 +341,12 @@ def lost_materials_text(runs: Sequence[Run]) -> str:
     material is lost when the map recalls under LOST_RECALL_PCT of it); empty when no run
     is below the target or none of those has touches to judge."""
     low = [r for r in runs if (get(r.metrics, MEAN_CLASS) or 0.0) < TARGET_PCT]
-    reasons: list[str] = []
-    lost_runs = judged = 0
-    for run in low:
-        recall = get(run.metrics, "matching_per_class") or {}
-        missed = never_read(get(run.metrics, "classifier_accuracy") or {}, list(recall))
-        judged += missed is not None
-        lost = [why for name, why in (missed or {}).items() if recall[name] < LOST_RECALL_PCT]
-        lost_runs += bool(lost)
-        reasons += lost
+    judged = [missed for missed in map(run_never_read, low) if missed is not None]
     if not judged:
         return ""
+    lost = [[why for why, recall in m.values() if recall < LOST_RECALL_PCT] for m in judged]
+    lost_runs = sum(bool(whys) for whys in lost)
+    reasons = [why for whys in lost for why in whys]
     counts = ", ".join(f"{n} {why}" for why, n in Counter(reasons).most_common())
     return (
         f" Of the {len(low)} runs below {fmt(TARGET_PCT, 0)} %, {lost_runs} lost a material no "

@@ -192,23 +192,23 @@ class SimRig(ContactSampler, FingerControl, RigProbes):
         trajectory lifts the object as each orientation needs (_rest_height).
         """
         up, across = palm[:3, 0], palm[:3, 1]
-        axes = [self.axis] + ([] if self.alternate_axis is None else [self.alternate_axis])
-        upright = all(abs(a @ up) > 0.99 * np.linalg.norm(a) for a in axes)
-        verts = np.asarray(self.obj.mesh.vertices)
-        half_up = float(np.abs(verts @ up).max()) if upright else self.obj.bounds_radius
         middle = self.nominal["middle"][0]
         centre = 0.5 * (middle + self.nominal["thumb"][0])
         centre -= ((centre - middle) @ across) * across  # centred on the middle finger
         centre += GRASP_REACH_M * palm[:3, 2]
         if self.grasp_height == "follow":
             return centre
-        lowest = half_up + self._palm_room(palm)
+        axes = [self.axis] + ([] if self.alternate_axis is None else [self.alternate_axis])
+        upright = all(abs(a @ up) > 0.99 * np.linalg.norm(a) for a in axes)
+        verts = np.asarray(self.obj.mesh.vertices)
+        half_up = float(np.abs(verts @ up).max()) if upright else self.obj.bounds_radius
+        lowest = half_up + self._palm_room()
         return centre + max(0.0, lowest - (centre - self._palm_face(palm)) @ up) * up
 
     def _palm_face(self, palm: np.ndarray) -> np.ndarray:
         return palm[:3, 3] + PALM_FACE_X * palm[:3, 0]
 
-    def _palm_room(self, palm: np.ndarray) -> float:
+    def _palm_room(self) -> float:
         """Clearance the object's lowest point keeps from the palm face, wobble included."""
         return PALM_CLEARANCE_M + np.sin(np.deg2rad(self.wobble_deg)) * self.obj.bounds_radius
 
@@ -216,7 +216,7 @@ class SimRig(ContactSampler, FingerControl, RigProbes):
         """grasp_height=follow: the lift that keeps each orientation's lowest point clear."""
         if self.grasp_height != "follow":
             return None
-        room = float((self.centre - self._palm_face(palm)) @ palm[:3, 0]) - self._palm_room(palm)
+        room = float((self.centre - self._palm_face(palm)) @ palm[:3, 0]) - self._palm_room()
         hull = np.asarray(self.obj.mesh.convex_hull.vertices)
         return RestHeight(hull, palm[:3, 0], room)
 

@@ -230,9 +230,10 @@ class ObjectTrajectory:
         w = w * w * (3.0 - 2.0 * w)
         return (1.0 - w) * seg.offset_from + w * seg.offset
 
-    def _lift(self, rotation: np.ndarray) -> np.ndarray:
-        """The centre's rise along the palm normal in an orientation (zero without a rest)."""
-        return np.zeros(3) if self.rest is None else self.rest.lift(rotation) * self.rest.up
+    def _lift(self, rotation: np.ndarray) -> np.ndarray | float:
+        """The centre's rise along the palm normal in an orientation (0.0 without a rest:
+        pose() runs many times a frame, so the default adds a scalar, not a new array)."""
+        return 0.0 if self.rest is None else self.rest.lift(rotation) * self.rest.up
 
     def pose(self, t: float) -> np.ndarray:
         seg = self._segments[self.segment(t)]
