@@ -272,8 +272,10 @@ def bench_lines(report: dict, source: str) -> list[str]:
     where = ", ".join(
         f"{k} {machine[k]}" for k in ("cpu_count", "cuda_device") if machine.get(k) is not None
     )
+    # A report made by part of the bench says so in `ran`; a whole `make bench` has none.
+    ran = report.get("ran", "`make bench`")
     head = [
-        f"From `{source}` (`make bench`, started {report.get('started', 'unknown')}; {where or 'machine not recorded'}).",
+        f"From `{source}` ({ran}, started {report.get('started', 'unknown')}; {where or 'machine not recorded'}).",
         "",
     ]
     if not rows:

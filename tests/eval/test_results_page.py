@@ -464,3 +464,18 @@ def test_a_directory_named_twice_counts_once(tmp_path: Path, object_sweep: Path)
     once = generate(tmp_path, object_sweep)
     twice = generate(tmp_path, object_sweep, Path(f"{object_sweep}/"), object_sweep)
     assert twice == once
+
+
+def test_a_report_of_part_of_the_bench_says_what_ran(tmp_path: Path, object_sweep: Path) -> None:
+    whole = write_bench(tmp_path / "bench.json", {"mapper": {"steps_per_s": 8.04}})
+    part = tmp_path / "bench_gpu.json"
+    report = json.loads(whole.read_text()) | {"ran": "the mapper bench's GPU runs alone"}
+    part.write_text(json.dumps(report))
+    out = tmp_path / "results.md"
+    assert (
+        main(["--out", str(out), "--bench", str(whole), "--bench", str(part), str(object_sweep)])
+        == 0
+    )
+    first, second = section(out.read_text(), "Speed").split(f"From `{part.as_posix()}`")
+    assert "(`make bench`, started" in first
+    assert second.startswith(" (the mapper bench's GPU runs alone, started 2026-11-24T21:25:12")
