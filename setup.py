@@ -35,7 +35,10 @@ INSTALL_REQUIRES = [
     "python-can>=4.4",
     "dynamixel-sdk>=3.7",
     "pyserial>=3.5",
-    "pyrealsense2>=2.55",
+    # PyPI has RealSense wheels for x86-64 Linux and Windows only; elsewhere (a Jetson, an
+    # Arm board) librealsense's Python bindings are built from source, and the rest installs.
+    "pyrealsense2>=2.55; (sys_platform == 'linux' and platform_machine == 'x86_64')"
+    " or sys_platform == 'win32'",
     "pyudev>=0.24",
 ]
 

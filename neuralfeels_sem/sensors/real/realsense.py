@@ -99,7 +99,14 @@ class RealSenseCamera:
         )
 
     def open(self) -> None:
-        import pyrealsense2 as rs
+        try:
+            import pyrealsense2 as rs
+        except ImportError:
+            raise HardwareError(
+                f"{self.label}: pyrealsense2 is not installed (PyPI has it for x86-64 Linux and "
+                "Windows only): build librealsense with BUILD_PYTHON_BINDINGS=ON into this "
+                "environment, or set sensor.camera=null"
+            ) from None
 
         found = [d.get_info(rs.camera_info.serial_number) for d in rs.context().query_devices()]
         if not found:
