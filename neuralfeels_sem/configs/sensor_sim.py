@@ -13,7 +13,7 @@ from neuralfeels_sem.sensors.sim.sim_sensor import POLICIES
 from neuralfeels_sem.sim.depth_noise import DEPTH_NOISE_MODELS, RealSenseNoiseConfig
 from neuralfeels_sem.sim.felt_material import check_ignored_faces
 from neuralfeels_sem.sim.touch_planner import TouchPlannerConfig
-from neuralfeels_sem.sim.trajectory import GRASP_HEIGHTS
+from neuralfeels_sem.sim.trajectory import check_grasp_height
 
 
 def _check_firmness(name: str, firmness: dict[str, float]) -> None:
@@ -147,10 +147,7 @@ class SimSensorConfig:
             )
         if self.alternate_every_s <= 0:
             raise ValueError(f"sensor.alternate_every_s={self.alternate_every_s} must be > 0")
-        if self.grasp_height not in GRASP_HEIGHTS:
-            raise ValueError(
-                f"sensor.grasp_height={self.grasp_height!r}: use one of {', '.join(GRASP_HEIGHTS)}"
-            )
+        check_grasp_height(self.grasp_height, "sensor.grasp_height")
         if self.gait_period_s <= 0:
             raise ValueError(f"sensor.gait_period_s={self.gait_period_s} must be > 0")
         if not 0.0 < self.contact_fraction < 1.0:

@@ -30,6 +30,12 @@ from neuralfeels_sem.core.geometry import rotation_matrix
 GRASP_HEIGHTS = ("fixed", "follow")
 
 
+def check_grasp_height(value: str, name: str = "grasp_height") -> None:
+    """ValueError naming `name` unless `value` is one of GRASP_HEIGHTS."""
+    if value not in GRASP_HEIGHTS:
+        raise ValueError(f"{name}={value!r}: use one of {', '.join(GRASP_HEIGHTS)}")
+
+
 def perpendicular_basis(axis: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
     """Two unit vectors completing `axis` to a right-handed orthonormal basis."""
     a = np.asarray(axis, np.float64)
