@@ -80,8 +80,12 @@ def sphere_directions(count: int) -> np.ndarray:
     return np.column_stack([r * np.cos(phi), r * np.sin(phi), z])
 
 
-def surface_samples(semantic_field, directions: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
-    """Points on the field's zero level (field frame) and the material entropy there."""
+def surface_samples(
+    semantic_field, directions: np.ndarray
+) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
+    """Points on the field's zero level (field frame), the material entropy there and the
+    outward unit normals (the SDF's gradient at the last Newton step, a millimetre or less
+    from the point: no extra pass)."""
     centre = semantic_field.center
     bound = semantic_field.bound
     x = centre + START_RADIUS * bound * torch.as_tensor(directions, dtype=centre.dtype).to(
@@ -94,13 +98,17 @@ def surface_samples(semantic_field, directions: np.ndarray) -> tuple[np.ndarray,
         x = torch.maximum(torch.minimum(x, centre + bound), centre - bound)
     with torch.no_grad():
         keep = semantic_field.sdf(x).abs() < ON_SURFACE_M
-        x = x[keep]
+        x, normals = x[keep], torch.nn.functional.normalize(grad.detach()[keep], dim=1)
         entropy = (
             normalised_entropy(semantic_field.material_logits(x))
             if len(x)
             else torch.zeros(0, device=x.device)
         )
-    return x.double().cpu().numpy(), entropy.double().cpu().numpy()
+    return _numpy(x), _numpy(entropy), _numpy(normals)
+
+
+def _numpy(t: torch.Tensor) -> np.ndarray:
+    return t.double().cpu().numpy()
 
 
 class TouchAdvisor:
@@ -118,6 +126,7 @@ class TouchAdvisor:
         self.touched: list[np.ndarray] = []  # touches counted for novelty, field frame
         self.surface = np.zeros((0, 3))
         self.entropy = np.zeros(0)
+        self.normals = np.zeros((0, 3))  # outward unit normals at the surface samples
         self.world_T_field = np.eye(4)  # the latest frame's object pose (the field's frame)
         self.unconfirmed = np.zeros((0, 3))  # readings to confirm, field frame
         self.mapped = 0
@@ -157,7 +166,9 @@ class TouchAdvisor:
         """The advice from the field as it is now, after `frame` (the latest mapped)."""
         due = self._sampled_at is None or self.mapped - self._sampled_at >= self.config.every_frames
         if due:
-            self.surface, self.entropy = surface_samples(mapper.field, self.directions)
+            self.surface, self.entropy, self.normals = surface_samples(
+                mapper.field, self.directions
+            )
             self._sampled_at = self.mapped
         # The sensor plans in its own object frame: the true one in sim (the field's frame
         # is the estimated one when the pose is tracked).
@@ -171,6 +182,7 @@ class TouchAdvisor:
             self.config.score,
             frame.index,
             _apply(sensor_T_field, self.unconfirmed),
+            self.normals @ sensor_T_field[:3, :3].T,
         )
 
     def _unconfirmed(self, mapper) -> np.ndarray:

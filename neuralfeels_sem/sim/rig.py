@@ -35,6 +35,7 @@ from neuralfeels_sem.core.digit import MAX_PENETRATION_M
 from neuralfeels_sem.core.geometry import invert_pose
 from neuralfeels_sem.core.hand import FINGERS
 from neuralfeels_sem.objects.material_object import MaterialObject
+from neuralfeels_sem.objects.proximity import closest_faces
 from neuralfeels_sem.sim.camera_renderer import front_left_camera_pose
 from neuralfeels_sem.sim.contact_sampler import ContactSampler
 from neuralfeels_sem.sim.finger_control import FingerControl
@@ -240,7 +241,11 @@ class SimRig(ContactSampler, FingerControl, RigProbes):
         if turns is None:
             return
         pose = self.trajectory.pose(touchdown_s)
-        turns.note_reach(points @ pose[:3, :3].T + pose[:3, 3])
+        normals = None
+        if turns.facing_cos is not None:  # the surface each screened touch meets
+            faces, _ = closest_faces(self.obj.mesh, points)
+            normals = self.obj.mesh.face_normals[faces] @ pose[:3, :3].T
+        turns.note_reach(points @ pose[:3, :3].T + pose[:3, 3], normals)
         if not self.planner.turn_due(touchdown_s):
             return
         start = max(touchdown_s, self.trajectory.horizon_s)

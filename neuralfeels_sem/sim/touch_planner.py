@@ -82,6 +82,8 @@ class TouchAdvice:
         config: the score's weights.
         frame_index: the mapped frame this advice follows.
         unconfirmed: (K, 3) readings left out by the vote, to be confirmed, object frame.
+        normals: (M, 3) the map's outward unit normals at the surface samples, object frame
+            (None: unknown; a chosen turn then ignores which way a sample faces).
     """
 
     def __init__(
@@ -92,11 +94,17 @@ class TouchAdvice:
         config: TouchScoreConfig,
         frame_index: int,
         unconfirmed: np.ndarray | None = None,
+        normals: np.ndarray | None = None,
     ) -> None:
         surface = np.asarray(surface, np.float64).reshape(-1, 3)
         entropy = np.asarray(entropy, np.float64).reshape(-1)
         if len(surface) != len(entropy):
             raise ValueError(f"{len(surface)} surface samples but {len(entropy)} entropies")
+        if normals is not None:
+            normals = np.asarray(normals, np.float64).reshape(-1, 3)
+            if len(normals) != len(surface):
+                raise ValueError(f"{len(surface)} surface samples but {len(normals)} normals")
+        self.normals = normals
         self.surface, self.entropy = surface, np.clip(entropy, 0.0, 1.0)
         self.touched = np.asarray(touched, np.float64).reshape(-1, 3)
         self.config, self.frame_index = config, int(frame_index)
@@ -199,6 +207,10 @@ class TouchPlannerConfig:
     turn_horizon_s: float = 3.0
     turn_gain: float = 1.25
     turn_reach_m: float = 0.01
+    # A sample counts as brought only where it faces within this many degrees of the
+    # surface the finger met at that place (its gel meets it head-on, not with its edge);
+    # null: any facing (sim/turn_choice.py).
+    turn_facing_deg: float | None = None
 
     def __post_init__(self) -> None:
         if self.candidates < 1:
@@ -224,6 +236,10 @@ class TouchPlannerConfig:
             raise ValueError(
                 "sensor.planner: turn_check_s, turn_horizon_s and turn_reach_m must be > 0"
             )
+        if self.turn_facing_deg is not None and not 0 < self.turn_facing_deg <= 180:
+            raise ValueError(
+                f"sensor.planner.turn_facing_deg={self.turn_facing_deg} must be in (0, 180] or null"
+            )
         if self.turn_gain < 1:
             raise ValueError(f"sensor.planner.turn_gain={self.turn_gain} must be >= 1")
         if not self.axes or any(len(a) != 3 or np.linalg.norm(a) < 1e-9 for a in self.axes):
@@ -246,7 +262,14 @@ class TouchPlanner:
         self.choices: list[tuple[float, int, float]] = []  # (touch-down s, advice frame, score)
         c = self.config
         self.turns = (
-            TurnChooser(c.turn_check_s, c.turn_horizon_s, c.turn_gain, c.turn_reach_m, c.axes)
+            TurnChooser(
+                c.turn_check_s,
+                c.turn_horizon_s,
+                c.turn_gain,
+                c.turn_reach_m,
+                c.axes,
+                c.turn_facing_deg,
+            )
             if c.turn == "advice"
             else None
         )
@@ -329,7 +352,8 @@ class TouchPlanner:
         """The axis to turn about from t, or None to keep the plan (see TurnChooser.choose)."""
         if self._scored is None or self._scored[0] is not self.advice:
             self._scored = (self.advice, self.advice.score(self.advice.surface))
-        axis = self.turns.choose(t, self.advice.surface, self._scored[1], plan, turns)
+        advice = self.advice
+        axis = self.turns.choose(t, advice.surface, self._scored[1], plan, turns, advice.normals)
         if axis is not None:
             self.last_regrasp_s, self.due_reason = float(t), "turn"
             self.starved, self.unreached = 0, 0

@@ -81,12 +81,13 @@ def _frame(index: int) -> Frame:
     return Frame(index, index / 10, np.eye(4), {"index": reading}, gt_world_T_object=np.eye(4))
 
 
-def test_surface_samples_lie_on_the_zero_level_with_the_branch_entropy() -> None:
+def test_surface_samples_lie_on_the_zero_level_with_the_branch_entropy_and_normals() -> None:
     directions = np.random.default_rng(0).normal(size=(200, 3))
     directions /= np.linalg.norm(directions, axis=1, keepdims=True)
-    points, entropy = surface_samples(SphereField(), directions)
-    assert len(points) == 200
+    points, entropy, normals = surface_samples(SphereField(), directions)
+    assert len(points) == 200 and normals.shape == (200, 3)
     np.testing.assert_allclose(np.linalg.norm(points, axis=1), RADIUS, atol=1e-6)
+    np.testing.assert_allclose(normals, points / RADIUS, atol=1e-6)  # outward, unit
     np.testing.assert_allclose(entropy[points[:, 2] > 0.001], 0.0, atol=1e-6)
     np.testing.assert_allclose(entropy[points[:, 2] < -0.001], 1.0, atol=1e-6)
 
@@ -98,6 +99,8 @@ def test_advice_reaches_the_sensor_and_suggestions_point_at_the_uncertain_half(t
         label = TouchLabel("index", True, 2, 0.99)
         advisor.on_frame(_frame(i), {"index": label}, np.eye(4), Mapper())
     assert [i for i, _ in sensor.advised] == [0, 1, 2]
+    advice = sensor.advised[-1][1]
+    assert advice.normals.shape == advice.surface.shape  # for a chosen turn's facing
     advice = sensor.advised[-1][1]
     np.testing.assert_allclose(advice.touched, [[0.0, 0.0, RADIUS]] * 3, atol=1e-12)
     advisor.on_scores(2, None, Mapper())

@@ -189,3 +189,10 @@ def test_alternation_goes_on_after_a_regrasp() -> None:
     traj.regrasp(3.0, x, np.zeros(3))
     axes = [traj.segment_axis(traj.segment(t)) for t in (1.0, 2.5, 3.5, 5.5, 7.5)]
     np.testing.assert_allclose(axes, [z, y, x, y, x])
+
+
+def test_advice_normals_must_match_the_surface_samples() -> None:
+    surface = np.zeros((3, 3))
+    with pytest.raises(ValueError, match="3 surface samples but 2 normals"):
+        TouchAdvice(surface, np.zeros(3), np.zeros((0, 3)), SCORE, 0, normals=np.ones((2, 3)))
+    assert _advice().normals is None  # unknown: a chosen turn ignores facing

@@ -5,7 +5,6 @@ from __future__ import annotations
 
 import numpy as np
 import pytest
-from scipy.spatial import cKDTree
 
 from neuralfeels_sem.core.geometry import rotation_matrix
 from neuralfeels_sem.sim.touch_planner import (
@@ -15,7 +14,7 @@ from neuralfeels_sem.sim.touch_planner import (
     TouchScoreConfig,
 )
 from neuralfeels_sem.sim.trajectory import ObjectTrajectory
-from neuralfeels_sem.sim.turn_choice import TurnChooser, sweep_gain
+from neuralfeels_sem.sim.turn_choice import Reach, TurnChooser, sweep_gain
 
 SPEED = np.deg2rad(30.0)
 AXES = np.eye(3)
@@ -46,13 +45,41 @@ def _chooser(gain: float = 1.25) -> TurnChooser:
 def test_the_gain_counts_each_sample_brought_to_the_fingers_once() -> None:
     surface = np.array([[0.04, 0.0, 0.0], [0.0, 0.04, 0.0], [0.0, 0.0, 0.04]])
     scores = np.array([0.5, 0.25, 1.0])
-    reach = cKDTree([[0.04, 0.0, 0.0]])
+    reach = Reach(np.array([[0.04, 0.0, 0.0]]))
     still = np.tile(np.eye(4), (3, 1, 1))
     assert sweep_gain(surface, scores, still, reach, 0.01) == 0.5  # three poses, counted once
     quarter = _poses(AXES[2], np.array([3.0]))  # +90 degrees about z: +y to -x, +x to +y
     spun = np.concatenate([still[:1], _poses(AXES[2], np.array([-3.0]))])  # then +y to +x
     assert sweep_gain(surface, scores, quarter, reach, 0.01) == 0.0
     assert sweep_gain(surface, scores, spun, reach, 0.01) == 0.75
+
+
+def test_with_a_facing_bound_a_sample_counts_only_where_it_faces_as_the_surface_met() -> None:
+    surface = np.array([[0.04, 0.0, 0.0], [0.0, 0.04, 0.0]])
+    normals = np.array([[0.0, 0.0, 1.0], [0.0, 1.0, 0.0]])  # an edge facing up; a flank
+    scores = np.array([1.0, 0.5])
+    met = np.array([[1.0, 0.0, 0.0]])  # the finger at +x met a surface facing +x
+    spun = np.concatenate([np.eye(4)[None], _poses(AXES[2], np.array([-3.0]))])  # +y to +x
+    cos60 = np.cos(np.deg2rad(60.0))
+    assert sweep_gain(surface, scores, spun, Reach(met * 0.04), 0.01, normals) == 1.5
+    facing = Reach(met * 0.04, met, cos60)
+    assert sweep_gain(surface, scores, spun, facing, 0.01, normals) == 0.5  # the flank only
+    assert sweep_gain(surface, scores, spun, facing, 0.01) == 1.5  # no sample normals: any
+
+
+def test_a_chooser_compares_facing_only_when_every_reach_point_has_a_normal() -> None:
+    chooser = TurnChooser(1.0, 3.0, 1.25, 0.01, AXES, facing_deg=60.0)
+    assert chooser.facing_cos == pytest.approx(0.5)
+    with pytest.raises(ValueError, match="2 reach points but 1 normals"):
+        chooser.note_reach(np.zeros((2, 3)), np.zeros((1, 3)))
+    surface, up = np.array([[0.04, 0.0, 0.0]]), np.array([[0.0, 0.0, 1.0]])
+    still = np.tile(np.eye(4), (len(chooser.ahead), 1, 1))
+    chooser.note_reach(np.array([[0.04, 0.0, 0.0]]), np.array([[1.0, 0.0, 0.0]]))
+    chooser.choose(0.0, surface, np.ones(1), still, [still] * 6, up)
+    assert chooser.log[-1][1] == 0.0  # the sample faces up where the finger met +x
+    chooser.note_reach(np.array([[0.04, 0.0, 0.001]]))  # a reach point without a normal
+    chooser.choose(1.0, surface, np.ones(1), still, [still] * 6, up)
+    assert chooser.log[-1][1] == 1.0
 
 
 def test_the_turn_that_brings_the_uncertain_cap_to_the_finger_replaces_the_plan() -> None:
@@ -92,7 +119,14 @@ def test_comparisons_wait_for_reach_and_for_check_s() -> None:
 
 @pytest.mark.parametrize(
     "key, value",
-    [("turn", "spin"), ("turn_check_s", 0.0), ("turn_horizon_s", -1.0), ("turn_gain", 0.5)],
+    [
+        ("turn", "spin"),
+        ("turn_check_s", 0.0),
+        ("turn_horizon_s", -1.0),
+        ("turn_gain", 0.5),
+        ("turn_facing_deg", 0.0),
+        ("turn_facing_deg", 200.0),
+    ],
 )
 def test_bad_turn_settings_are_value_errors_naming_the_key(key, value) -> None:
     with pytest.raises(ValueError, match=f"sensor.planner.*{key}"):
