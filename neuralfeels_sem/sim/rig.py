@@ -245,7 +245,7 @@ class SimRig(ContactSampler, FingerControl, RigProbes):
         if turns.facing_cos is not None:  # the surface each screened touch meets
             faces, _ = closest_faces(self.obj.mesh, points)
             normals = self.obj.mesh.face_normals[faces] @ pose[:3, :3].T
-        turns.note_reach(points @ pose[:3, :3].T + pose[:3, 3], normals)
+        turns.note_reach(points @ pose[:3, :3].T + pose[:3, 3], normals, points)
         if not self.planner.turn_due(touchdown_s):
             return
         start = max(touchdown_s, self.trajectory.horizon_s)

@@ -211,6 +211,9 @@ class TouchPlannerConfig:
     # surface the finger met at that place (its gel meets it head-on, not with its edge);
     # null: any facing (sim/turn_choice.py).
     turn_facing_deg: float | None = None
+    # The share of its score a sample keeps once a finger could have pressed it (screened
+    # there) and did not: below 1 a turn that only brings such places back gains less.
+    turn_offered_weight: float = 1.0
 
     def __post_init__(self) -> None:
         if self.candidates < 1:
@@ -239,6 +242,10 @@ class TouchPlannerConfig:
         if self.turn_facing_deg is not None and not 0 < self.turn_facing_deg <= 180:
             raise ValueError(
                 f"sensor.planner.turn_facing_deg={self.turn_facing_deg} must be in (0, 180] or null"
+            )
+        if not 0.0 <= self.turn_offered_weight <= 1.0:
+            raise ValueError(
+                f"sensor.planner.turn_offered_weight={self.turn_offered_weight} must be in [0, 1]"
             )
         if self.turn_gain < 1:
             raise ValueError(f"sensor.planner.turn_gain={self.turn_gain} must be >= 1")
@@ -269,6 +276,7 @@ class TouchPlanner:
                 c.turn_reach_m,
                 c.axes,
                 c.turn_facing_deg,
+                c.turn_offered_weight,
             )
             if c.turn == "advice"
             else None

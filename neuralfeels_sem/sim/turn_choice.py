@@ -11,7 +11,11 @@ it passes within `turn_reach_m` of a reach point, and the motion's gain is the s
 touch score of the samples it brings, each once. With `facing_deg` a sample counts only
 where its outward normal, carried along too, lies within that angle of the surface normal
 the finger met at the reach point: a sample that passes the place facing elsewhere meets
-the gel with its edge, or not at all. The candidates are the plan (the turn the
+the gel with its edge, or not at all. With `offered_weight` below 1, a sample within
+`turn_reach_m` of a place the fingers could already have pressed (the screened touches so
+far, object frame) counts that share of its score: it has passed the fingers and was not
+chosen, and a turn that only brings it back (the reverse of the one just made) gains
+little. The candidates are the plan (the turn the
 object is in, with the gait's alternation ahead) and a turn about each of the planner's
 `axes`, either way round; a turn replaces the plan only when its gain exceeds the plan's
 by the factor `turn_gain`, so that a near tie keeps the gait's motion.
@@ -26,6 +30,7 @@ from scipy.spatial import cKDTree
 
 STEP_S = 0.25  # the sweep is followed at this spacing (7.5 degrees at 30 deg/s)
 REACH_MEMORY = 1024  # reach points kept (about 6 s of screened touches)
+OFFERED_MEMORY = 16384  # object-frame places offered to the fingers (a 30 s run's screening)
 NEAREST_REACH = 8  # reach points within reach_m compared by facing, nearest first
 
 
@@ -85,6 +90,8 @@ class TurnChooser:
         axes: unit world axes a turn may be about (each either way round).
         facing_deg: how far a brought sample's normal may turn from the normal met at the
             reach point (None: any facing).
+        offered_weight: the share of its score a sample keeps once the fingers could have
+            pressed it (1: all of it).
     """
 
     def __init__(
@@ -95,8 +102,11 @@ class TurnChooser:
         reach_m: float,
         axes: np.ndarray,
         facing_deg: float | None = None,
+        offered_weight: float = 1.0,
     ) -> None:
         self.check_s, self.gain, self.reach_m = float(check_s), float(gain), float(reach_m)
+        self.offered_weight = float(offered_weight)
+        self.offered: deque = deque(maxlen=OFFERED_MEMORY)  # object frame
         self.facing_cos = None if facing_deg is None else float(np.cos(np.deg2rad(facing_deg)))
         self.ahead = np.arange(1, int(round(horizon_s / STEP_S)) + 1) * STEP_S
         axes = np.asarray(axes, np.float64).reshape(-1, 3)
@@ -108,9 +118,17 @@ class TurnChooser:
         # (time, plan's gain, best turn's gain, chosen axis or None) per comparison
         self.log: list[tuple[float, float, float, list[float] | None]] = []
 
-    def note_reach(self, world_points: np.ndarray, world_normals: np.ndarray | None = None) -> None:
+    def note_reach(
+        self,
+        world_points: np.ndarray,
+        world_normals: np.ndarray | None = None,
+        object_points: np.ndarray | None = None,
+    ) -> None:
         """Add the world-frame points a finger could press at one touch-down (and the
-        outward surface normals there, world frame)."""
+        outward surface normals there, world frame; and the same places in the object
+        frame, for `offered_weight`)."""
+        if object_points is not None:
+            self.offered.extend(np.asarray(object_points, np.float64).reshape(-1, 3))
         points = np.asarray(world_points, np.float64).reshape(-1, 3)
         normals = (
             np.full_like(points, np.nan)
@@ -145,6 +163,7 @@ class TurnChooser:
         met = np.asarray(self.reach_normals)
         known = None if np.isnan(met).any() else met  # facing needs every reach normal
         reach = Reach(np.asarray(self.reach), known, self.facing_cos)
+        scores = self._discount_offered(surface, scores)
         kept = sweep_gain(surface, scores, plan, reach, self.reach_m, normals)
         gains = [
             sweep_gain(surface, scores, poses, reach, self.reach_m, normals) for poses in turns
@@ -153,3 +172,13 @@ class TurnChooser:
         chosen = self.candidates[best] if gains[best] > self.gain * kept else None
         self.log.append((float(t), kept, gains[best], None if chosen is None else chosen.tolist()))
         return chosen
+
+    def _discount_offered(self, surface: np.ndarray, scores: np.ndarray) -> np.ndarray:
+        """Scores with `offered_weight` applied where a sample lies within reach_m of a
+        place already offered to the fingers (object frame)."""
+        if self.offered_weight >= 1.0 or not self.offered:
+            return scores
+        dist, _ = cKDTree(np.asarray(self.offered)).query(
+            surface, distance_upper_bound=self.reach_m
+        )
+        return np.where(np.isfinite(dist), self.offered_weight * scores, scores)

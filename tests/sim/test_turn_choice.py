@@ -82,6 +82,19 @@ def test_a_chooser_compares_facing_only_when_every_reach_point_has_a_normal() ->
     assert chooser.log[-1][1] == 1.0
 
 
+@pytest.mark.parametrize("weight, expected", [(1.0, [0.0, 0.0, 1.0]), (0.0, [0.0, 0.0, -1.0])])
+def test_a_place_already_offered_to_the_fingers_gains_its_weight(weight, expected) -> None:
+    chooser = TurnChooser(1.0, 3.0, 1.25, 0.01, AXES, offered_weight=weight)
+    # the finger at +x could press the -y flank before (object frame = world at the time)
+    chooser.note_reach(np.array([[0.04, 0.0, 0.0]]), object_points=np.array([[0.0, -0.04, 0.0]]))
+    surface = np.array([[0.0, 0.04, 0.0], [0.0, -0.04, 0.0]])
+    still = np.tile(np.eye(4), (len(chooser.ahead), 1, 1))
+    turns = [_poses(a, chooser.ahead) for a in chooser.candidates]
+    # +z brings -y to the finger, -z brings +y; as good as each other until -y counts less
+    chosen = chooser.choose(0.0, surface, np.ones(2), still, turns)
+    np.testing.assert_allclose(chosen, expected)
+
+
 def test_the_turn_that_brings_the_uncertain_cap_to_the_finger_replaces_the_plan() -> None:
     surface = _sphere()
     scores = (surface[:, 2] > 0.03).astype(float)  # only the +z cap is worth a touch
@@ -126,6 +139,7 @@ def test_comparisons_wait_for_reach_and_for_check_s() -> None:
         ("turn_gain", 0.5),
         ("turn_facing_deg", 0.0),
         ("turn_facing_deg", 200.0),
+        ("turn_offered_weight", 1.5),
     ],
 )
 def test_bad_turn_settings_are_value_errors_naming_the_key(key, value) -> None:
