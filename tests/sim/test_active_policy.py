@@ -195,3 +195,28 @@ def test_a_chosen_turn_brings_the_uncertain_cap_to_the_fingers() -> None:
         else:
             assert not rig.trajectory.regrasps
     assert share["gait"] == 0.0 and share["advice"] > 0.1, share
+
+
+def test_a_chosen_turn_facing_the_fingers_still_brings_the_cap_to_them() -> None:
+    # As above with the facing bound and offered places discounted: the rig passes the
+    # mesh's normals at the screened touches and the touches' object-frame places.
+    surface, height = _heights_along_the_first_axis()
+    cap = (height > 0.8 * height.max()).astype(float)
+    normals = surface / np.linalg.norm(surface, axis=1, keepdims=True)  # a sphere's
+    advice = TouchAdvice(
+        surface, cap, surface, TouchScoreConfig(novelty_weight=0.0), 0, normals=normals
+    )
+    rig = _active_rig(
+        advice, turn="advice", regrasp_after=100, turn_facing_deg=60.0, turn_offered_weight=0.5
+    )
+    on_cap = []
+    for i in range(40):
+        state = rig.state_at(i / 10)
+        for f, p in state.contact_point.items():
+            if state.touching[f] and p is not None:
+                on_cap.append(cap[np.argmin(np.linalg.norm(surface - p, axis=1))])
+    turns = rig.planner.turns
+    assert len(turns.offered) == len(turns.reach)  # every screened place, object frame
+    met = np.asarray(turns.reach_normals)
+    np.testing.assert_allclose(np.linalg.norm(met, axis=1), 1.0, atol=1e-6)
+    assert set(rig.regrasp_reasons) == {"turn"} and np.mean(on_cap) > 0.1
