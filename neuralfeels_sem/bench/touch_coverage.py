@@ -23,7 +23,8 @@ from neuralfeels_sem.configs.sensor_sim import SimSensorConfig
 from neuralfeels_sem.core.materials import DEFAULT_MATERIALS
 from neuralfeels_sem.objects.random_object import development_seeds, make_random_object
 from neuralfeels_sem.sim.rig import SimRig
-from neuralfeels_sem.sim.touch_planner import TouchAdvice, TouchPlanner, TouchScoreConfig
+from neuralfeels_sem.sim.touch_advice import TouchAdvice, TouchScoreConfig
+from neuralfeels_sem.sim.touch_planner import TouchPlanner
 
 CLASSES = tuple(DEFAULT_MATERIALS)
 

@@ -4,7 +4,7 @@ It keeps the touches so far (the presses with a label, or every press: `novelty_
 and, when advice is asked for, samples the map's surface as it is after the latest mapped
 frame (points of a sphere around the field's centre, moved onto the SDF's zero level by
 Newton steps), takes the material branch's normalised entropy there, and packs both into a
-TouchAdvice (sim/touch_planner.py) that scores object-frame points by uncertainty and
+TouchAdvice (sim/touch_advice.py) that scores object-frame points by uncertainty and
 novelty. With sensor.policy=active the simulated sensor asks after every mapped frame and
 presses where the advice scores highest; on any other rig (sensor=real, replay) the best
 `top_k` surface points are written to the run as `touch_suggestions.json` at every scoring
@@ -29,7 +29,7 @@ from neuralfeels_sem.core.frame import Frame
 from neuralfeels_sem.core.geometry import invert_pose
 from neuralfeels_sem.fields.material_uncertainty import normalised_entropy
 from neuralfeels_sem.perception.touch import TouchLabel
-from neuralfeels_sem.sim.touch_planner import TouchAdvice, TouchScoreConfig
+from neuralfeels_sem.sim.touch_advice import TouchAdvice, TouchScoreConfig
 from neuralfeels_sem.utils.atomic import atomic_write_text
 
 log = logging.getLogger(__name__)

@@ -15,10 +15,10 @@ the gel with its edge, or not at all. With `offered_weight` below 1, a sample wi
 `turn_reach_m` of a place the fingers could already have pressed (the screened touches so
 far, object frame) counts that share of its score: it has passed the fingers and was not
 chosen, and a turn that only brings it back (the reverse of the one just made) gains
-little. The candidates are the plan (the turn the
-object is in, with the gait's alternation ahead) and a turn about each of the planner's
-`axes`, either way round; a turn replaces the plan only when its gain exceeds the plan's
-by the factor `turn_gain`, so that a near tie keeps the gait's motion.
+little. The candidates are the plan (the turn the object is in, with the gait's
+alternation ahead) and a turn about each of the planner's `axes`, either way round; a turn
+replaces the plan only when its gain exceeds the plan's by the factor `turn_gain`, so that
+a near tie keeps the gait's motion.
 """
 
 from __future__ import annotations

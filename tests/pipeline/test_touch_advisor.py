@@ -209,7 +209,7 @@ def test_a_reading_left_out_by_the_vote_draws_the_next_press_with_the_confirm_te
 ) -> None:
     from neuralfeels_sem.mapping.label_vote import LabelVote
     from neuralfeels_sem.mapping.touch_memory import TouchBuffer
-    from neuralfeels_sem.sim.touch_planner import TouchScoreConfig
+    from neuralfeels_sem.sim.touch_advice import TouchScoreConfig
 
     vote = LabelVote(radius=0.01, min_neighbours=3, min_agreement=0.25, min_support=1,
                      press_gap=0, support_radius=0.04, steady_frames=0, press_reach=None)  # fmt: skip

@@ -11,12 +11,8 @@ import numpy as np
 from neuralfeels_sem.configs.sensor_sim import SimSensorConfig
 from neuralfeels_sem.sim.rig import SimRig
 from neuralfeels_sem.sim.rig_params import GOOD_CONTACT_RAYS
-from neuralfeels_sem.sim.touch_planner import (
-    TouchAdvice,
-    TouchPlanner,
-    TouchPlannerConfig,
-    TouchScoreConfig,
-)
+from neuralfeels_sem.sim.touch_advice import TouchAdvice, TouchScoreConfig
+from neuralfeels_sem.sim.touch_planner import TouchPlanner, TouchPlannerConfig
 from tests.sim.shapes import two_material_sphere
 
 MOTION = SimSensorConfig().rig_motion()

@@ -5,12 +5,8 @@ from __future__ import annotations
 import numpy as np
 import pytest
 
-from neuralfeels_sem.sim.touch_planner import (
-    TouchAdvice,
-    TouchPlanner,
-    TouchPlannerConfig,
-    TouchScoreConfig,
-)
+from neuralfeels_sem.sim.touch_advice import TouchAdvice, TouchScoreConfig
+from neuralfeels_sem.sim.touch_planner import TouchPlanner, TouchPlannerConfig
 from neuralfeels_sem.sim.trajectory import ObjectTrajectory
 
 SCORE = TouchScoreConfig(uncertainty_weight=1.0, novelty_weight=1.0, novelty_m=0.02, unseen_m=0.01)

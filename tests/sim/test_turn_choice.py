@@ -7,12 +7,8 @@ import numpy as np
 import pytest
 
 from neuralfeels_sem.core.geometry import rotation_matrix
-from neuralfeels_sem.sim.touch_planner import (
-    TouchAdvice,
-    TouchPlanner,
-    TouchPlannerConfig,
-    TouchScoreConfig,
-)
+from neuralfeels_sem.sim.touch_advice import TouchAdvice, TouchScoreConfig
+from neuralfeels_sem.sim.touch_planner import TouchPlanner, TouchPlannerConfig
 from neuralfeels_sem.sim.trajectory import ObjectTrajectory
 from neuralfeels_sem.sim.turn_choice import Reach, TurnChooser, sweep_gain
 

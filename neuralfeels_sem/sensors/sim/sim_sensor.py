@@ -215,7 +215,7 @@ class SimSensor(IndexedSensor):
         self._advice_ready = threading.Condition()
 
     def advise(self, frame_index: int, advice) -> None:
-        """The map's TouchAdvice after mapping `frame_index` (sim/touch_planner.py)."""
+        """The map's TouchAdvice after mapping `frame_index` (sim/touch_advice.py)."""
         with self._advice_ready:
             self._advice, self._advice_index = advice, int(frame_index)
             self._advices[int(frame_index)] = advice
