@@ -170,6 +170,17 @@ def test_a_confirm_regrasp_brings_an_unconfirmed_reading_under_a_finger() -> Non
     assert not plain.trajectory.regrasps
 
 
+def _share_on_cap(rig: SimRig, surface: np.ndarray, cap: np.ndarray) -> float:
+    """The share of the rig's touching finger-frames over 4 s whose contact is on the cap."""
+    on_cap = []
+    for i in range(40):
+        state = rig.state_at(i / 10)
+        for f, p in state.contact_point.items():
+            if state.touching[f] and p is not None:
+                on_cap.append(cap[np.argmin(np.linalg.norm(surface - p, axis=1))])
+    return float(np.mean(on_cap))
+
+
 def test_a_chosen_turn_brings_the_uncertain_cap_to_the_fingers() -> None:
     # Only the cap round the first axis' pole is uncertain: the gait's turn about that axis
     # never brings it to a finger in 4 s; turn=advice turns the object so that it does.
@@ -179,13 +190,7 @@ def test_a_chosen_turn_brings_the_uncertain_cap_to_the_fingers() -> None:
     share = {}
     for turn in ("gait", "advice"):
         rig = _active_rig(advice, turn=turn, regrasp_after=100)
-        on_cap = []
-        for i in range(40):
-            state = rig.state_at(i / 10)
-            for f, p in state.contact_point.items():
-                if state.touching[f] and p is not None:
-                    on_cap.append(cap[np.argmin(np.linalg.norm(surface - p, axis=1))])
-        share[turn] = float(np.mean(on_cap))
+        share[turn] = _share_on_cap(rig, surface, cap)
         if turn == "advice":
             assert rig.regrasp_reasons and set(rig.regrasp_reasons) == {"turn"}
         else:
@@ -205,14 +210,9 @@ def test_a_chosen_turn_facing_the_fingers_still_brings_the_cap_to_them() -> None
     rig = _active_rig(
         advice, turn="advice", regrasp_after=100, turn_facing_deg=60.0, turn_offered_weight=0.5
     )
-    on_cap = []
-    for i in range(40):
-        state = rig.state_at(i / 10)
-        for f, p in state.contact_point.items():
-            if state.touching[f] and p is not None:
-                on_cap.append(cap[np.argmin(np.linalg.norm(surface - p, axis=1))])
+    share = _share_on_cap(rig, surface, cap)
     turns = rig.planner.turns
     assert len(turns.offered) == len(turns.reach)  # every screened place, object frame
     met = np.asarray(turns.reach_normals)
     np.testing.assert_allclose(np.linalg.norm(met, axis=1), 1.0, atol=1e-6)
-    assert set(rig.regrasp_reasons) == {"turn"} and np.mean(on_cap) > 0.1
+    assert set(rig.regrasp_reasons) == {"turn"} and share > 0.1
