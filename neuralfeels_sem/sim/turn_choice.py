@@ -127,7 +127,7 @@ class TurnChooser:
         """Add the world-frame points a finger could press at one touch-down (and the
         outward surface normals there, world frame; and the same places in the object
         frame, for `offered_weight`)."""
-        if object_points is not None:
+        if object_points is not None and self.offered_weight < 1.0:  # kept only if read
             self.offered.extend(np.asarray(object_points, np.float64).reshape(-1, 3))
         points = np.asarray(world_points, np.float64).reshape(-1, 3)
         normals = (
@@ -160,9 +160,7 @@ class TurnChooser:
         if len(turns) != len(self.candidates):
             raise ValueError(f"{len(turns)} turns for {len(self.candidates)} candidate axes")
         self.last_check_s = float(t)
-        met = np.asarray(self.reach_normals)
-        known = None if np.isnan(met).any() else met  # facing needs every reach normal
-        reach = Reach(np.asarray(self.reach), known, self.facing_cos)
+        reach = Reach(np.asarray(self.reach), self._reach_normals(), self.facing_cos)
         scores = self._discount_offered(surface, scores)
         kept = sweep_gain(surface, scores, plan, reach, self.reach_m, normals)
         gains = [
@@ -172,6 +170,13 @@ class TurnChooser:
         chosen = self.candidates[best] if gains[best] > self.gain * kept else None
         self.log.append((float(t), kept, gains[best], None if chosen is None else chosen.tolist()))
         return chosen
+
+    def _reach_normals(self) -> np.ndarray | None:
+        """The reach points' normals when the facing bound compares them (every one known)."""
+        if self.facing_cos is None:
+            return None
+        met = np.asarray(self.reach_normals)
+        return None if np.isnan(met).any() else met
 
     def _discount_offered(self, surface: np.ndarray, scores: np.ndarray) -> np.ndarray:
         """Scores with `offered_weight` applied where a sample lies within reach_m of a
