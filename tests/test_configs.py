@@ -105,6 +105,7 @@ def test_wrong_type_fails_at_compose() -> None:
         ["mapping.mapper.label_vote_support_radius=-0.01"],
         ["sensor.alternate_axis=[0,0,0]"],
         ["sensor.alternate_every_s=0"],
+        ["sensor.alternate_axis=null", "sensor.planner.turn=advance"],
         ["sensor.grasp_height=low"],
         ["eval.mesh_match_tolerance_m=0"],
         ["eval.mesh_match_tolerance_m=-0.005"],

@@ -145,6 +145,11 @@ class SimSensorConfig:
             raise ValueError(
                 f"sensor.alternate_axis={self.alternate_axis} must be null or a non-zero [x, y, z]"
             )
+        if self.planner.turn == "advance" and self.alternate_axis is None:
+            raise ValueError(
+                "sensor.planner.turn=advance moves the gait's alternation forward: "
+                "set sensor.alternate_axis, or use turn=gait or advice"
+            )
         if self.alternate_every_s <= 0:
             raise ValueError(f"sensor.alternate_every_s={self.alternate_every_s} must be > 0")
         check_grasp_height(self.grasp_height, "sensor.grasp_height")

@@ -234,7 +234,7 @@ class SimRig(ContactSampler, FingerControl, RigProbes):
         self._new_stretch(k)
 
     def _consider_turn(self, points: np.ndarray, touchdown_s: float) -> None:
-        """sensor.planner.turn=advice: note where the finger could press (the screened
+        """sensor.planner.turn=advice or advance: note where the finger could press (the screened
         touches' object-frame points) and, when a comparison is due, turn the object the
         way that brings the fingers the most touch score (sim/turn_choice.py)."""
         turns = self.planner.turns
@@ -250,8 +250,10 @@ class SimRig(ContactSampler, FingerControl, RigProbes):
             return
         start = max(touchdown_s, self.trajectory.horizon_s)
         plan = self.trajectory.steady_poses(start + turns.ahead)
-        options = [self.trajectory.turn_poses(start, a, turns.ahead) for a in turns.candidates]
-        axis = self.planner.choose_turn(touchdown_s, plan, options)
+        advance = self.planner.config.turn == "advance"  # only the gait's next stretch
+        axes = [self.trajectory.next_axis(start)] if advance else turns.candidates
+        options = [self.trajectory.turn_poses(start, a, turns.ahead) for a in axes]
+        axis = self.planner.choose_turn(touchdown_s, plan, options, axes)
         if axis is not None:
             k, _ = self.trajectory.turn(start, axis)
             self._new_stretch(k)

@@ -12,7 +12,8 @@ advice holds unconfirmed readings and no screened touch has come within `confirm
 for that many new contacts in a row: that regrasp brings the most uncertain of them to the
 fingers instead (a part read once is left out of the map until a second press backs it,
 and the turn the object is in may never bring it back). With `turn=advice` the planner also
-chooses which way the object turns (TurnChooser, sim/turn_choice.py).
+chooses which way the object turns (TurnChooser, sim/turn_choice.py); with `turn=advance`
+only when the gait's next stretch begins.
 """
 
 from __future__ import annotations
@@ -23,6 +24,8 @@ import numpy as np
 
 from neuralfeels_sem.sim.touch_advice import TouchAdvice
 from neuralfeels_sem.sim.turn_choice import TurnChooser
+
+TURN_MODES = ("gait", "advice", "advance")  # sensor.planner.turn
 
 
 @dataclass
@@ -53,8 +56,10 @@ class TouchPlannerConfig:
     # gait: the object turns as the scripted gait turns it (and as regrasps leave it);
     # advice: every turn_check_s the turn that brings the most touch score to the fingers
     # over turn_horizon_s replaces the plan when it gains turn_gain times as much
-    # (sim/turn_choice.py); at most one turn or regrasp per regrasp_gap_s.
-    turn: str = "gait"  # gait or advice
+    # (sim/turn_choice.py); advance: the same comparison with one candidate, the gait's
+    # next stretch begun now (its alternation moved forward, never reversed); at most one
+    # turn or regrasp per regrasp_gap_s.
+    turn: str = "gait"  # gait, advice or advance
     turn_check_s: float = 1.0
     turn_horizon_s: float = 3.0
     turn_gain: float = 1.25
@@ -85,8 +90,8 @@ class TouchPlannerConfig:
             )
         if self.regrasp_gap_s < 0 or self.max_offset_m < 0 or self.keep_m < 0:
             raise ValueError("sensor.planner: regrasp_gap_s, max_offset_m and keep_m must be >= 0")
-        if self.turn not in ("gait", "advice"):
-            raise ValueError(f"sensor.planner.turn={self.turn!r}: use gait or advice")
+        if self.turn not in TURN_MODES:
+            raise ValueError(f"sensor.planner.turn={self.turn!r}: use {', '.join(TURN_MODES)}")
         if min(self.turn_check_s, self.turn_horizon_s, self.turn_reach_m) <= 0:
             raise ValueError(
                 "sensor.planner: turn_check_s, turn_horizon_s and turn_reach_m must be > 0"
@@ -130,7 +135,7 @@ class TouchPlanner:
                 c.turn_facing_deg,
                 c.turn_offered_weight,
             )
-            if c.turn == "advice"
+            if c.turn != "gait"
             else None
         )
         self._scored: tuple[TouchAdvice, np.ndarray] | None = None  # advice, its surface scores
@@ -204,16 +209,20 @@ class TouchPlanner:
         return due
 
     def turn_due(self, t: float) -> bool:
-        """Whether to compare turns at t (turn=advice, advice there, no recent regrasp)."""
+        """Whether to compare turns at t (a chosen turn mode, advice there, no recent regrasp)."""
         gap_ok = t - self.last_regrasp_s >= self.config.regrasp_gap_s
         return self.turns is not None and self.advice is not None and gap_ok and self.turns.due(t)
 
-    def choose_turn(self, t: float, plan: np.ndarray, turns: list[np.ndarray]) -> np.ndarray | None:
+    def choose_turn(
+        self, t: float, plan: np.ndarray, turns: list[np.ndarray], axes: np.ndarray | None = None
+    ) -> np.ndarray | None:
         """The axis to turn about from t, or None to keep the plan (see TurnChooser.choose)."""
         if self._scored is None or self._scored[0] is not self.advice:
             self._scored = (self.advice, self.advice.score(self.advice.surface))
         advice = self.advice
-        axis = self.turns.choose(t, advice.surface, self._scored[1], plan, turns, advice.normals)
+        axis = self.turns.choose(
+            t, advice.surface, self._scored[1], plan, turns, advice.normals, axes
+        )
         if axis is not None:
             self.last_regrasp_s, self.due_reason = float(t), "turn"
             self.starved, self.unreached = 0, 0

@@ -182,6 +182,12 @@ class ObjectTrajectory:
         self._extend_to_index(k)
         return self._segments[k].axis
 
+    def next_axis(self, t: float) -> np.ndarray:
+        """The axis of the stretch after the one time t falls in (a preview, as steady_poses)."""
+        k = self._index(float(t))
+        self._extend_to_index(k + 1)
+        return self._segments[k + 1].axis
+
     def segment_start(self, k: int) -> float:
         self._extend_to_index(k)
         return self._segments[k].start_s

@@ -18,7 +18,9 @@ chosen, and a turn that only brings it back (the reverse of the one just made) g
 little. The candidates are the plan (the turn the object is in, with the gait's
 alternation ahead) and a turn about each of the planner's `axes`, either way round; a turn
 replaces the plan only when its gain exceeds the plan's by the factor `turn_gain`, so that
-a near tie keeps the gait's motion.
+a near tie keeps the gait's motion. With `turn=advance` the rig offers one candidate: the
+axis of the gait's next stretch, begun now (the alternation moved forward; it never
+reverses a turn or picks an axis of its own).
 """
 
 from __future__ import annotations
@@ -151,14 +153,17 @@ class TurnChooser:
         plan: np.ndarray,
         turns: list[np.ndarray],
         normals: np.ndarray | None = None,
+        axes: np.ndarray | None = None,
     ) -> np.ndarray | None:
-        """The axis to turn about from t (a row of `candidates`), or None to keep the plan.
+        """The axis to turn about from t (a row of `axes`), or None to keep the plan.
 
         plan: (K, 4, 4) poses at t + ahead; turns: one such array per candidate axis;
-        normals: the surface samples' outward normals (object frame), for `facing_deg`.
+        normals: the surface samples' outward normals (object frame), for `facing_deg`;
+        axes: the candidate axes compared this time (None: `candidates`).
         """
-        if len(turns) != len(self.candidates):
-            raise ValueError(f"{len(turns)} turns for {len(self.candidates)} candidate axes")
+        axes = self.candidates if axes is None else np.asarray(axes, np.float64).reshape(-1, 3)
+        if len(turns) != len(axes):
+            raise ValueError(f"{len(turns)} turns for {len(axes)} candidate axes")
         self.last_check_s = float(t)
         reach = Reach(np.asarray(self.reach), self._reach_normals(), self.facing_cos)
         scores = self._discount_offered(surface, scores)
@@ -167,7 +172,7 @@ class TurnChooser:
             sweep_gain(surface, scores, poses, reach, self.reach_m, normals) for poses in turns
         ]
         best = int(np.argmax(gains))
-        chosen = self.candidates[best] if gains[best] > self.gain * kept else None
+        chosen = axes[best] if gains[best] > self.gain * kept else None
         self.log.append((float(t), kept, gains[best], None if chosen is None else chosen.tolist()))
         return chosen
 

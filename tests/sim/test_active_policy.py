@@ -183,19 +183,23 @@ def _share_on_cap(rig: SimRig, surface: np.ndarray, cap: np.ndarray) -> float:
 
 def test_a_chosen_turn_brings_the_uncertain_cap_to_the_fingers() -> None:
     # Only the cap round the first axis' pole is uncertain: the gait's turn about that axis
-    # never brings it to a finger in 4 s; turn=advice turns the object so that it does.
+    # never brings it to a finger in 4 s; turn=advice turns the object so that it does, and
+    # so does turn=advance, which starts the gait's second stretch (about y) early.
     surface, height = _heights_along_the_first_axis()
     cap = (height > 0.8 * height.max()).astype(float)
     advice = TouchAdvice(surface, cap, surface, TouchScoreConfig(novelty_weight=0.0), 0)
     share = {}
-    for turn in ("gait", "advice"):
+    for turn in ("gait", "advice", "advance"):
         rig = _active_rig(advice, turn=turn, regrasp_after=100)
         share[turn] = _share_on_cap(rig, surface, cap)
-        if turn == "advice":
-            assert rig.regrasp_reasons and set(rig.regrasp_reasons) == {"turn"}
-        else:
+        if turn == "gait":
             assert not rig.trajectory.regrasps
-    assert share["gait"] == 0.0 and share["advice"] > 0.1, share
+        else:
+            assert rig.regrasp_reasons and set(rig.regrasp_reasons) == {"turn"}
+    assert share["gait"] == 0.0 and share["advice"] > 0.1 and share["advance"] > 0.1, share
+    gait_axes = (MOTION["axis"], MOTION["alternate_axis"])  # advance turns about no other
+    turned = [axis for _, axis, _ in rig.trajectory.regrasps]
+    assert all(any(np.allclose(a, g) for g in gait_axes) for a in turned), turned
 
 
 def test_a_chosen_turn_facing_the_fingers_still_brings_the_cap_to_them() -> None:

@@ -1,5 +1,5 @@
-"""sensor.planner.turn=advice: the sweep gain, the choice between the plan and a turn, the
-trajectory's previews and turns, and the planner's bookkeeping."""
+"""sensor.planner.turn=advice and advance: the sweep gain, the choice between the plan and
+a turn, the trajectory's previews and turns, and the planner's bookkeeping."""
 
 from __future__ import annotations
 
@@ -104,6 +104,24 @@ def test_the_turn_that_brings_the_uncertain_cap_to_the_finger_replaces_the_plan(
     assert t == 0.0 and kept == 0.0 and best > 0 and axis == [0.0, 1.0, 0.0]
 
 
+def test_given_axes_replace_the_candidates_for_one_comparison() -> None:
+    # turn=advance offers one axis, the gait's next: +y brings the +z cap to the finger at
+    # +x, +x keeps it away from it (the cap swings towards -y).
+    surface = _sphere()
+    scores = (surface[:, 2] > 0.03).astype(float)
+    chooser = _chooser()
+    plan = _poses(AXES[2], chooser.ahead)
+    for axis, expected in ((AXES[1], AXES[1]), (AXES[0], None)):
+        turn = [_poses(axis, chooser.ahead)]
+        chosen = chooser.choose(0.0, surface, scores, plan, turn, axes=axis[None])
+        if expected is None:
+            assert chosen is None
+        else:
+            np.testing.assert_allclose(chosen, expected)
+    with pytest.raises(ValueError, match="2 turns for 1 candidate axes"):
+        chooser.choose(0.0, surface, scores, plan, [plan, plan], axes=AXES[:1])
+
+
 def test_a_near_tie_keeps_the_plan() -> None:
     surface = _sphere()
     scores = np.ones(len(surface))
@@ -175,3 +193,18 @@ def test_previews_move_no_horizon_and_a_turn_keeps_the_place_in_the_grasp() -> N
     assert start == 6.0 and traj.segment_axis(k) @ z == 1.0
     np.testing.assert_allclose(traj.segment_centre(k), [0.02, 0.0, 0.0])
     np.testing.assert_allclose(traj.pose(7.0)[:3, :3], preview[1][:3, :3], atol=1e-12)
+
+
+def test_the_next_axis_is_the_alternations_and_follows_a_turn() -> None:
+    z, y = np.eye(3)[2], np.eye(3)[1]
+    traj = ObjectTrajectory(np.zeros(3), z, alternate_axis=y, alternate_every_s=2.0, wobble_deg=0)
+    np.testing.assert_allclose(traj.next_axis(1.0), y)
+    np.testing.assert_allclose(traj.next_axis(3.0), z)
+    assert traj.horizon_s == 0.0  # a preview
+    traj.pose(0.5)
+    k, _ = traj.turn(0.5, y)  # the alternation moved forward: y from 0.5 s, then z
+    np.testing.assert_allclose(traj.segment_axis(k), y)
+    np.testing.assert_allclose(traj.next_axis(1.0), z)
+    one = ObjectTrajectory(np.zeros(3), z)
+    with pytest.raises(IndexError, match="one axis"):
+        one.next_axis(1.0)
