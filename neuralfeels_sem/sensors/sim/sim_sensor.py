@@ -267,7 +267,8 @@ class SimSensor(IndexedSensor):
                 {"time_s": t, "axis": axis.tolist(), "offset_m": offset.tolist(), "why": why}
                 for (t, axis, offset), why in zip(trajectory.regrasps, self.rig.regrasp_reasons)
             ],
-            # turn=advice or advance: each comparison of the plan with the best turn (sim/turn_choice.py)
+            # turn=advice or advance: each comparison of the plan with the best turn
+            # (sim/turn_choice.py)
             "turn_checks": [
                 {"time_s": t, "plan_gain": kept, "best_gain": best, "axis": axis}
                 for t, kept, best, axis in (planner.turns.log if planner.turns else [])
