@@ -105,7 +105,7 @@ def test_wrong_type_fails_at_compose() -> None:
         ["mapping.mapper.label_vote_support_radius=-0.01"],
         ["sensor.alternate_axis=[0,0,0]"],
         ["sensor.alternate_every_s=0"],
-        ["sensor.alternate_axis=null", "sensor.planner.turn=advance"],
+        ["sensor.alternate_axis=null", "sensor.policy=active"],  # advance needs two axes
         ["sensor.grasp_height=low"],
         ["eval.mesh_match_tolerance_m=0"],
         ["eval.mesh_match_tolerance_m=-0.005"],
@@ -117,6 +117,17 @@ def test_out_of_range_value_is_a_config_error(overrides: list[str]) -> None:
     with pytest.raises(ConfigError) as info:
         validate_config(cfg)
     assert "\n" not in str(info.value)
+
+
+@pytest.mark.parametrize(
+    "overrides",
+    [
+        ["sensor.alternate_axis=null"],  # the scripted gait: one axis is fine
+        ["sensor.alternate_axis=null", "sensor.policy=active", "sensor.planner.turn=gait"],
+    ],
+)
+def test_one_axis_validates_without_turns_to_advance(overrides: list[str]) -> None:
+    validate_config(compose_config(overrides))
 
 
 def test_cli_out_of_range_exits_2_with_one_line() -> None:

@@ -12,7 +12,7 @@ from neuralfeels_sem.sensors.base import check_pace
 from neuralfeels_sem.sensors.sim.sim_sensor import POLICIES
 from neuralfeels_sem.sim.depth_noise import DEPTH_NOISE_MODELS, RealSenseNoiseConfig
 from neuralfeels_sem.sim.felt_material import check_ignored_faces
-from neuralfeels_sem.sim.touch_planner import TouchPlannerConfig
+from neuralfeels_sem.sim.touch_planner import TouchPlannerConfig, check_turn_axes
 from neuralfeels_sem.sim.trajectory import check_grasp_height
 
 
@@ -145,11 +145,8 @@ class SimSensorConfig:
             raise ValueError(
                 f"sensor.alternate_axis={self.alternate_axis} must be null or a non-zero [x, y, z]"
             )
-        if self.planner.turn == "advance" and self.alternate_axis is None:
-            raise ValueError(
-                "sensor.planner.turn=advance moves the gait's alternation forward: "
-                "set sensor.alternate_axis, or use turn=gait or advice"
-            )
+        if self.policy == "active":
+            check_turn_axes(self.planner.turn, self.alternate_axis, "sensor.planner.turn")
         if self.alternate_every_s <= 0:
             raise ValueError(f"sensor.alternate_every_s={self.alternate_every_s} must be > 0")
         check_grasp_height(self.grasp_height, "sensor.grasp_height")

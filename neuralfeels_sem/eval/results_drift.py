@@ -77,12 +77,13 @@ def show(value: Any) -> str:
 # Settings read only in some modes, or that change nothing a run maps in them: {prefix:
 # (the key that picks the mode, its value in which they are unread)}. A run that read the
 # simulator's pose never ran the tracker; a scripted gait never asks the touch planner nor
-# waits for advice; at offline pace the acquisition thread and the simulator's own process
+# waits for advice; an active run turned as the gait turns compares no turns; at offline pace the acquisition thread and the simulator's own process
 # change the loop's wall time, not one figure of the map (tests/pipeline/test_pipeline.py).
 UNREAD_IN: dict[str, tuple[str, str]] = {
     "mapping.tracker.": ("mapping.pose", "gt"),
     "sensor.planner.": ("sensor.policy", "scripted"),
     "sensor.advice_lag_frames": ("sensor.policy", "scripted"),
+    "sensor.planner.turn_": ("sensor.planner.turn", "gait"),
     "mapping.acquire_thread": ("sensor.pace", "offline"),
     "mapping.acquire_process": ("sensor.pace", "offline"),
 }
@@ -118,12 +119,15 @@ def compared(key: str, flat: dict[str, Any] | None = None) -> bool:
 # with 0 (off). classifier.edge_extent came with whole (the label covers the imprint).
 # mapping.mapper.fill_m came with 0.01: runs before it read the material branch alone.
 # sensor.tactile.ignored_faces came with nearest: runs before it pressed ignored faces as a
-# texture of no material.
+# texture of no material. sensor.planner.turn came with gait (the default became advance),
+# and turn_offered_weight with 1.0 (the default became 0.3).
 ADDED_SINCE: dict[str, tuple[str, Any]] = {
     "classifier.patch_probe": ("classifier.max_patches", 0),
     "mapping.tracker.max_points_per_finger": ("mapping.tracker.max_points_per_source", 1000),
     "mapping.mapper.label_vote_steady_frames": ("mapping.mapper.label_vote_press_gap", 0),
     "sensor.planner.weigh_by_contact": ("sensor.planner.candidates", False),
+    "sensor.planner.turn": ("sensor.planner.candidates", "gait"),
+    "sensor.planner.turn_offered_weight": ("sensor.planner.turn", 1.0),
     "classifier.cpu_runtime": ("classifier.cuda_graphs", "torch"),
     "classifier.edge_min_confidence": ("classifier.min_confidence", None),
     "classifier.edge_long_streak_frames": ("classifier.edge_streak_frames", 0),

@@ -59,7 +59,7 @@ from neuralfeels_sem.sim.rig_params import (
 )
 from neuralfeels_sem.sim.rig_probes import GEL_GRID_RAYS, RigProbes
 from neuralfeels_sem.sim.scene import SimScene
-from neuralfeels_sem.sim.touch_planner import TouchPlanner
+from neuralfeels_sem.sim.touch_planner import TouchPlanner, check_turn_axes
 from neuralfeels_sem.sim.trajectory import ObjectTrajectory, RestHeight, check_grasp_height
 
 
@@ -117,6 +117,8 @@ class SimRig(ContactSampler, FingerControl, RigProbes):
         self._world_T_palm, self._world_T_camera = world_T_palm, world_T_camera
         self.seed = seed
         self.planner = planner  # sensor.policy=active: touches ranked by the map's advice
+        if planner is not None:
+            check_turn_axes(planner.config.turn, alternate_axis)
         check_grasp_height(grasp_height)
         # fixed: the centre high enough for any orientation; follow: as low as each allows
         self.grasp_height = grasp_height

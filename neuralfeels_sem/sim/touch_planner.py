@@ -28,6 +28,15 @@ from neuralfeels_sem.sim.turn_choice import TurnChooser
 TURN_MODES = ("gait", "advice", "advance")  # sensor.planner.turn
 
 
+def check_turn_axes(turn: str, alternate_axis: object, name: str = "planner.turn") -> None:
+    """turn=advance moves the gait's alternation forward, so the gait must alternate."""
+    if turn == "advance" and alternate_axis is None:
+        raise ValueError(
+            f"{name}=advance (the active policy's default) moves the gait's alternation "
+            f"forward: set an alternate_axis, or {name}=gait"
+        )
+
+
 @dataclass
 class TouchPlannerConfig:
     """`sensor.planner`: how the active policy picks touches and when it regrasps."""
@@ -57,9 +66,10 @@ class TouchPlannerConfig:
     # advice: every turn_check_s the turn that brings the most touch score to the fingers
     # over turn_horizon_s replaces the plan when it gains turn_gain times as much
     # (sim/turn_choice.py); advance: the same comparison with one candidate, the gait's
-    # next stretch begun now (its alternation moved forward, never reversed); at most one
-    # turn or regrasp per regrasp_gap_s.
-    turn: str = "gait"  # gait, advice or advance
+    # next stretch begun now (its alternation moved forward, never reversed; needs
+    # sensor.alternate_axis); at most one turn or regrasp per regrasp_gap_s. advance maps
+    # the development objects better than gait at seeds 0-3 (docs/simulation.md).
+    turn: str = "advance"  # gait, advice or advance
     turn_check_s: float = 1.0
     turn_horizon_s: float = 3.0
     turn_gain: float = 1.25
@@ -70,7 +80,7 @@ class TouchPlannerConfig:
     turn_facing_deg: float | None = None
     # The share of its score a sample keeps once a finger could have pressed it (screened
     # there) and did not: below 1 a turn that only brings such places back gains less.
-    turn_offered_weight: float = 1.0
+    turn_offered_weight: float = 0.3
 
     def __post_init__(self) -> None:
         if self.candidates < 1:

@@ -159,6 +159,30 @@ def test_an_active_run_before_the_contact_share_reads_as_without_it() -> None:
     assert drift({"sensor": {"policy": "scripted", "planner": planner}}, {}, today) == {}
 
 
+def test_an_active_run_before_chosen_turns_reads_as_turned_by_the_gait() -> None:
+    """Runs from before sensor.planner.turn turned as the gait turns; the turn_* settings
+    compare nothing there, and a run from before turn_offered_weight weighed offered places
+    fully."""
+    today = {
+        "sensor.policy": "active",
+        "sensor.planner.candidates": 48,
+        "sensor.planner.turn": "advance",
+        "sensor.planner.turn_gain": 1.25,
+        "sensor.planner.turn_offered_weight": 0.3,
+    }
+    before = {"sensor": {"policy": "active", "planner": {"candidates": 48}}}
+    assert drift(before, {}, today) == {"sensor.planner.turn": ("gait", "advance")}
+    plain = {"candidates": 48, "turn": "gait", "turn_gain": 2.0, "turn_offered_weight": 1.0}
+    assert drift({"sensor": {"policy": "active", "planner": plain}}, {}, today) == {
+        "sensor.planner.turn": ("gait", "advance")
+    }
+    advice = {"candidates": 48, "turn": "advice", "turn_gain": 1.25}
+    assert drift({"sensor": {"policy": "active", "planner": advice}}, {}, today) == {
+        "sensor.planner.turn": ("advice", "advance"),
+        "sensor.planner.turn_offered_weight": (1.0, 0.3),
+    }
+
+
 def test_the_acquisition_stages_make_no_offline_run_another_setting() -> None:
     """Offline the map is the same with one producer thread or two, the simulator in its own
     process or not; at realtime it is not."""

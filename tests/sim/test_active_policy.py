@@ -31,6 +31,9 @@ class TowardScore(TouchAdvice):
 
 
 def _active_rig(advice: TouchAdvice, seed: int = 0, **planner) -> SimRig:
+    # The object turns as the gait turns it unless a test asks for chosen turns (the
+    # planner's default, advance, would otherwise add turns to the regrasps tested here).
+    planner.setdefault("turn", "gait")
     rig = SimRig(
         two_material_sphere(),
         seed=seed,

@@ -175,7 +175,8 @@ def test_the_planner_turns_at_most_once_per_regrasp_gap_and_records_why() -> Non
     np.testing.assert_allclose(axis, [0.0, 1.0, 0.0])
     assert planner.due_reason == "turn" and planner.last_regrasp_s == 0.0
     assert not planner.turn_due(1.5) and planner.turn_due(2.0)
-    assert TouchPlanner().turns is None and not TouchPlanner().turn_due(0.0)  # gait: off
+    gait = TouchPlanner(TouchPlannerConfig(turn="gait"))
+    assert gait.turns is None and not gait.turn_due(0.0)
 
 
 def test_previews_move_no_horizon_and_a_turn_keeps_the_place_in_the_grasp() -> None:
@@ -208,3 +209,16 @@ def test_the_next_axis_is_the_alternations_and_follows_a_turn() -> None:
     one = ObjectTrajectory(np.zeros(3), z)
     with pytest.raises(IndexError, match="one axis"):
         one.next_axis(1.0)
+
+
+def test_advance_needs_an_alternation_to_move_forward() -> None:
+    # The active policy's default turn rule; a rig turning about one axis has no next
+    # stretch, so it is refused at construction, not at the first turn check.
+    from neuralfeels_sem.sim.rig import SimRig
+    from tests.sim.shapes import two_material_sphere
+
+    sphere = two_material_sphere()
+    with pytest.raises(ValueError, match="planner.turn=gait"):
+        SimRig(sphere, planner=TouchPlanner(), alternate_axis=None)
+    SimRig(sphere, planner=TouchPlanner(TouchPlannerConfig(turn="gait")), alternate_axis=None)
+    SimRig(sphere, alternate_axis=None)  # the scripted gait: no planner, nothing to check
