@@ -77,8 +77,9 @@ def show(value: Any) -> str:
 # Settings read only in some modes, or that change nothing a run maps in them: {prefix:
 # (the key that picks the mode, its value in which they are unread)}. A run that read the
 # simulator's pose never ran the tracker; a scripted gait never asks the touch planner nor
-# waits for advice; an active run turned as the gait turns compares no turns; at offline pace the acquisition thread and the simulator's own process
-# change the loop's wall time, not one figure of the map (tests/pipeline/test_pipeline.py).
+# waits for advice; an active run turned as the gait turns compares no turns; at offline
+# pace the acquisition thread and the simulator's own process change the loop's wall time,
+# not one figure of the map (tests/pipeline/test_pipeline.py).
 UNREAD_IN: dict[str, tuple[str, str]] = {
     "mapping.tracker.": ("mapping.pose", "gt"),
     "sensor.planner.": ("sensor.policy", "scripted"),

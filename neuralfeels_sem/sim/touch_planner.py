@@ -18,6 +18,7 @@ only when the gait's next stretch begins.
 
 from __future__ import annotations
 
+from collections.abc import Sequence
 from dataclasses import dataclass, field
 
 import numpy as np
@@ -28,7 +29,9 @@ from neuralfeels_sem.sim.turn_choice import TurnChooser
 TURN_MODES = ("gait", "advice", "advance")  # sensor.planner.turn
 
 
-def check_turn_axes(turn: str, alternate_axis: object, name: str = "planner.turn") -> None:
+def check_turn_axes(
+    turn: str, alternate_axis: Sequence[float] | None, name: str = "planner.turn"
+) -> None:
     """turn=advance moves the gait's alternation forward, so the gait must alternate."""
     if turn == "advance" and alternate_axis is None:
         raise ValueError(
@@ -67,8 +70,8 @@ class TouchPlannerConfig:
     # over turn_horizon_s replaces the plan when it gains turn_gain times as much
     # (sim/turn_choice.py); advance: the same comparison with one candidate, the gait's
     # next stretch begun now (its alternation moved forward, never reversed; needs
-    # sensor.alternate_axis); at most one turn or regrasp per regrasp_gap_s. advance maps
-    # the development objects better than gait at seeds 0-3 (docs/simulation.md).
+    # sensor.alternate_axis); at most one turn or regrasp per regrasp_gap_s. advance, the
+    # default, finds more of the development objects' small parts (docs/simulation.md).
     turn: str = "advance"  # gait, advice or advance
     turn_check_s: float = 1.0
     turn_horizon_s: float = 3.0
