@@ -71,7 +71,7 @@ class TouchPlannerConfig:
     # (sim/turn_choice.py); advance: the same comparison with one candidate, the gait's
     # next stretch begun now (its alternation moved forward, never reversed; needs
     # sensor.alternate_axis); at most one turn or regrasp per regrasp_gap_s. advance, the
-    # default, finds more of the development objects' small parts (docs/simulation.md).
+    # default, has the higher lowest object on the development set (docs/simulation.md).
     turn: str = "advance"  # gait, advice or advance
     turn_check_s: float = 1.0
     turn_horizon_s: float = 3.0
