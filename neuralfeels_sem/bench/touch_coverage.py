@@ -27,16 +27,24 @@ from neuralfeels_sem.sim.touch_advice import TouchAdvice, TouchScoreConfig
 from neuralfeels_sem.sim.touch_planner import TouchPlanner
 
 CLASSES = tuple(DEFAULT_MATERIALS)
+POLICIES = ("scripted", "active")
 
 
-def touched_materials(obj, policy: str = "scripted", seed: int = 0) -> tuple[Counter, SimRig]:
-    """Finger-frames per material ("ignore": unlabelled faces) over the default run, and the rig."""
+def touched_materials(
+    obj, policy: str = "scripted", seed: int = 0, frames: int | None = None
+) -> tuple[Counter, SimRig]:
+    """Finger-frames per material ("ignore": unlabelled faces) over the first `frames` frames
+    (None: the default run length), and the rig."""
+    if policy not in POLICIES:
+        raise ValueError(f"policy={policy!r}: use {' or '.join(POLICIES)}")
     config = SimSensorConfig()
     planner = TouchPlanner() if policy == "active" else None
     rig = SimRig(obj, seed=seed, planner=planner, **config.rig_motion())
     touched: Counter[str] = Counter()
     history: list[np.ndarray] = []
-    for i in range(round(config.duration_s * config.fps)):
+    if frames is None:
+        frames = round(config.duration_s * config.fps)
+    for i in range(frames):
         if planner is not None:
             planner.advice = TouchAdvice(
                 np.zeros((0, 3)), np.zeros(0), np.array(history).reshape(-1, 3),
@@ -56,22 +64,23 @@ def coverage(touched: Counter, materials: list[str], min_frames: int) -> float:
     return sum(touched[m] >= min_frames for m in materials) / len(materials)
 
 
-def run(seeds: list[int], min_frames: int = 1) -> dict:
-    """Coverage per generated object (object=random object.seed=K) and policy."""
+def run(seeds: list[int], min_frames: int = 1, frames: int | None = None) -> dict:
+    """Coverage per generated object (object=random object.seed=K) and policy, over the
+    first `frames` frames of each run (None: the default run length)."""
     rows = []
     for k in seeds:
         obj = make_random_object(k, CLASSES)
         materials = list(obj.generation["materials"])
         row = {"object_seed": k, "materials": materials}
-        for policy in ("scripted", "active"):
-            touched, _ = touched_materials(obj, policy)
+        for policy in POLICIES:
+            touched, _ = touched_materials(obj, policy, frames=frames)
             row[policy] = {
                 "coverage": coverage(touched, materials, min_frames),
                 "finger_frames": dict(touched),
             }
         rows.append(row)
         print(k, row["scripted"]["coverage"], row["active"]["coverage"], flush=True)
-    mean = {p: float(np.mean([r[p]["coverage"] for r in rows])) for p in ("scripted", "active")}
+    mean = {p: float(np.mean([r[p]["coverage"] for r in rows])) for p in POLICIES}
     return {"min_frames": min_frames, "mean_coverage": mean, "objects": rows}
 
 
@@ -79,13 +88,16 @@ def main() -> None:
     parser = argparse.ArgumentParser(description=__doc__.splitlines()[0])
     parser.add_argument("--seeds", default="0-9", help="object seeds, e.g. 0-59 (below 1000)")
     parser.add_argument("--min-frames", type=int, default=1)
+    parser.add_argument("--frames", type=int, default=None, help="default: the run length")
     parser.add_argument("--out", type=Path, default=None)
     args = parser.parse_args()
     try:
         seeds = development_seeds(args.seeds)
     except ValueError as exc:
         parser.error(str(exc))
-    result = run(seeds, args.min_frames)
+    if args.frames is not None and args.frames < 1:
+        parser.error(f"--frames={args.frames} must be >= 1")
+    result = run(seeds, args.min_frames, args.frames)
     text = json.dumps(result, indent=1)
     if args.out is not None:
         args.out.write_text(text)
