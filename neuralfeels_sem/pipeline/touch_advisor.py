@@ -124,6 +124,7 @@ class TouchAdvisor:
         self.config, self.sensor, self.out = config, sensor, Path(out)
         self.directions = sphere_directions(config.surface_points)
         self.touched: list[np.ndarray] = []  # touches counted for novelty, field frame
+        self.touched_labels: list[int] = []  # the class each was read as (-1: none)
         self.surface = np.zeros((0, 3))
         self.entropy = np.zeros(0)
         self.normals = np.zeros((0, 3))  # outward unit normals at the surface samples
@@ -153,6 +154,7 @@ class TouchAdvisor:
                 continue
             gel = reading.world_T_sensor @ np.array([0.0, 0.0, GEL_DISTANCE_M, 1.0])
             self.touched.append((object_T_world @ gel)[:3])
+            self.touched_labels.append(int(label.label) if label.usable else -1)
 
     def on_frame(self, frame: Frame, labels: dict, world_T_object: np.ndarray, mapper) -> None:
         self.on_touches(frame, labels, world_T_object, mapper)
@@ -183,6 +185,7 @@ class TouchAdvisor:
             frame.index,
             _apply(sensor_T_field, self.unconfirmed),
             self.normals @ sensor_T_field[:3, :3].T,
+            np.array(self.touched_labels, int),
         )
 
     def _unconfirmed(self, mapper) -> np.ndarray:
@@ -217,6 +220,7 @@ class TouchAdvisor:
             self.config.score,
             latest.frame_index,
             self.unconfirmed,
+            labels=np.array(self.touched_labels, int),
         )
         points, scores = advice.suggestions(self.config.top_k)
         report = suggestions_report(advice, points, scores, self.world_T_field)

@@ -8,7 +8,14 @@
 
   u(p):       normalised entropy of the material branch at the map's surface sample
               nearest p (fields/material_uncertainty.py); 1 where no sample lies within
-              `unseen_m` (a part the map has not seen is as uncertain as can be);
+              `unseen_m` (a part the map has not seen is as uncertain as can be); with
+              `boundary_m` set, at least border(p) (below);
+  border(p):  1 - (d_other(p) - d_1(p)) / boundary_m, clipped to [0, 1]: d_1 is the
+              distance to the nearest labelled touch and d_other to the nearest one with
+              another label. The map's fill gives every point the nearest touch's label
+              with a confidence that fades with d_1 alone, so it is as sure halfway between
+              two materials' presses as beside one; the border between them lies somewhere
+              there, and this term marks the band where a press would place it;
   novelty(p): distance from p to the nearest labelled touch, over `novelty_m`, capped at 1
               (1 before any touch): an untrained branch is often confidently wrong, so
               entropy alone would not send the fingers to parts never pressed;
@@ -40,6 +47,9 @@ class TouchScoreConfig:
     unseen_m: float = 0.01  # a point this far from the map's surface samples counts unknown
     confirm_weight: float = 0.0  # in [0, 1]; 0: off
     confirm_m: float = 0.01  # a point this close to an unconfirmed reading confirms it
+    # Width (m) of the band between two labels' touches that counts as uncertain (the
+    # border term of the module docstring); null: off, the map's entropy alone.
+    boundary_m: float | None = None
 
     def __post_init__(self) -> None:
         if self.uncertainty_weight < 0 or self.novelty_weight < 0:
@@ -58,6 +68,10 @@ class TouchScoreConfig:
             )
         if self.novelty_m <= 0 or self.unseen_m <= 0:
             raise ValueError("mapping.advisor.score: novelty_m and unseen_m must be > 0 (metres)")
+        if self.boundary_m is not None and self.boundary_m <= 0:
+            raise ValueError(
+                f"mapping.advisor.score.boundary_m={self.boundary_m} must be > 0 or null"
+            )
 
 
 class TouchAdvice:
@@ -72,6 +86,8 @@ class TouchAdvice:
         unconfirmed: (K, 3) readings left out by the vote, to be confirmed, object frame.
         normals: (M, 3) the map's outward unit normals at the surface samples, object frame
             (None: unknown; a chosen turn then ignores which way a sample faces).
+        labels: (T,) the class each touch in `touched` was read as (negative: none), for
+            the border term (None: unknown; the term then stays 0).
     """
 
     def __init__(
@@ -83,6 +99,7 @@ class TouchAdvice:
         frame_index: int,
         unconfirmed: np.ndarray | None = None,
         normals: np.ndarray | None = None,
+        labels: np.ndarray | None = None,
     ) -> None:
         surface = np.asarray(surface, np.float64).reshape(-1, 3)
         entropy = np.asarray(entropy, np.float64).reshape(-1)
@@ -102,6 +119,7 @@ class TouchAdvice:
             np.zeros((0, 3)) if unconfirmed is None else unconfirmed, np.float64
         ).reshape(-1, 3)
         self._confirm_tree = cKDTree(self.unconfirmed) if len(self.unconfirmed) else None
+        self._label_trees = _label_trees(self.touched, labels)
 
     def touch_distance(self, points: np.ndarray) -> np.ndarray:
         """(N,) metres from each point to the nearest labelled touch (inf before any)."""
@@ -116,7 +134,21 @@ class TouchAdvice:
         if self._surface_tree is None:
             return np.ones(len(points))
         dist, nearest = self._surface_tree.query(points)
-        return np.where(dist <= self.config.unseen_m, self.entropy[nearest], 1.0)
+        entropy = np.where(dist <= self.config.unseen_m, self.entropy[nearest], 1.0)
+        if self.config.boundary_m is None:
+            return entropy
+        return np.maximum(entropy, self.border(points))
+
+    def border(self, points: np.ndarray) -> np.ndarray:
+        """(N,) in [0, 1]: 1 where the nearest touches of two labels are equally far, 0
+        where the nearest other label is `boundary_m` farther than the nearest touch (or
+        fewer than two labels have been read)."""
+        points = np.asarray(points, np.float64).reshape(-1, 3)
+        if len(self._label_trees) < 2 or self.config.boundary_m is None:
+            return np.zeros(len(points))
+        per_label = np.stack([tree.query(points)[0] for tree in self._label_trees], axis=1)
+        two = np.sort(per_label, axis=1)[:, :2]
+        return np.clip(1.0 - (two[:, 1] - two[:, 0]) / self.config.boundary_m, 0.0, 1.0)
 
     def confirms(self, points: np.ndarray) -> np.ndarray:
         """(N,) 1.0 where a point lies within `confirm_m` of an unconfirmed reading, else 0."""
@@ -159,3 +191,13 @@ class TouchAdvice:
         scores = self.score(self.surface)
         far = np.minimum(self.touch_distance(self.surface), 1.0)  # finite before any touch
         return self.surface[int(np.lexsort((-far, -scores))[0])]
+
+
+def _label_trees(touched: np.ndarray, labels: np.ndarray | None) -> list[cKDTree]:
+    """A KD-tree of the touches read as each label (labels read at least once)."""
+    if labels is None:
+        return []
+    labels = np.asarray(labels).reshape(-1)
+    if len(labels) != len(touched):
+        raise ValueError(f"{len(touched)} touches but {len(labels)} labels")
+    return [cKDTree(touched[labels == c]) for c in np.unique(labels[labels >= 0])]

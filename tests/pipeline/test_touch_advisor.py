@@ -174,6 +174,14 @@ def test_novelty_from_pressed_counts_an_abstained_press_but_not_a_miss(tmp_path)
     advisor.on_frame(_frame(1), {"index": abstained}, np.eye(4), Mapper())
     np.testing.assert_allclose(advisor.touched, [[0.0, 0.0, RADIUS]], atol=1e-12)
     assert advisor.advice.touch_distance(np.array([[0.0, 0.0, RADIUS]]))[0] < 1e-9
+    assert advisor.touched_labels == [-1]  # no material for the border term
+
+
+def test_each_counted_touch_keeps_the_label_it_was_read_as(tmp_path) -> None:
+    advisor = TouchAdvisor(TouchAdvisorConfig(surface_points=64), AdvisedSensor(), tmp_path)
+    advisor.on_frame(_frame(0), {"index": TouchLabel("index", True, 2, 0.99)}, np.eye(4), Mapper())
+    advisor.on_frame(_frame(1), {"index": TouchLabel("index", True, 1, 0.99)}, np.eye(4), Mapper())
+    assert advisor.touched_labels == [2, 1]
 
 
 def test_touches_of_frames_not_mapped_count_without_new_advice(tmp_path) -> None:

@@ -27,6 +27,30 @@ def test_score_mixes_entropy_at_the_nearest_sample_and_distance_to_touches() -> 
     assert (_advice(touched=np.zeros((0, 3))).score(points) >= 0.5).all()
 
 
+def test_the_border_term_marks_the_band_between_two_labels_touches() -> None:
+    touched = np.array([[0.0, 0.0, 0.0], [0.04, 0.0, 0.0], [0.05, 0.0, 0.0]])
+    labels = np.array([0, 1, 1])
+    surface = np.array([[0.02, 0.0, 0.0], [0.0, 0.0, 0.001], [0.06, 0.0, 0.0]])
+    config = TouchScoreConfig(novelty_weight=0.0, boundary_m=0.02)
+    advice = TouchAdvice(surface, np.full(3, 0.1), touched, config, 0, labels=labels)
+    points = np.array([[0.02, 0.0, 0.0], [0.01, 0.0, 0.0], [0.0, 0.0, 0.001], [0.06, 0.0, 0.0]])
+    # halfway: 1; 1 cm from label 0 and 3 cm from label 1: 1 - 2/2 = 0; beside a touch: 0
+    np.testing.assert_allclose(advice.border(points), [1.0, 0.0, 0.0, 0.0], atol=1e-12)
+    np.testing.assert_allclose(advice.border([[0.015, 0.0, 0.0]]), [0.5], atol=1e-12)
+    # the uncertainty is the larger of the entropy and the border term
+    np.testing.assert_allclose(advice.uncertainty(points[[0, 2]]), [1.0, 0.1], atol=1e-12)
+    # one label read, no labels given, or the term off: the entropy alone
+    one = TouchAdvice(surface, np.full(3, 0.1), touched, config, 0, labels=np.ones(3, int))
+    unlabelled = TouchAdvice(surface, np.full(3, 0.1), touched, config, 0)
+    off = TouchAdvice(surface, np.full(3, 0.1), touched, TouchScoreConfig(), 0, labels=labels)
+    for advice in (one, unlabelled, off):
+        np.testing.assert_allclose(advice.uncertainty(surface[:1]), [0.1])
+    with pytest.raises(ValueError, match="3 touches but 2 labels"):
+        TouchAdvice(surface, np.zeros(3), touched, config, 0, labels=np.zeros(2, int))
+    with pytest.raises(ValueError, match="boundary_m"):
+        TouchScoreConfig(boundary_m=0.0)
+
+
 def test_suggestions_are_best_first_and_spread_and_the_hotspot_is_the_best() -> None:
     advice = _advice()
     points, scores = advice.suggestions(2)
