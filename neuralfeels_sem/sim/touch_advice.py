@@ -119,7 +119,10 @@ class TouchAdvice:
             np.zeros((0, 3)) if unconfirmed is None else unconfirmed, np.float64
         ).reshape(-1, 3)
         self._confirm_tree = cKDTree(self.unconfirmed) if len(self.unconfirmed) else None
-        self._label_trees = _label_trees(self.touched, labels)
+        # Built only for the border term: the advice is remade after every mapped frame.
+        self._label_trees = (
+            _label_trees(self.touched, labels) if config.boundary_m is not None else []
+        )
 
     def touch_distance(self, points: np.ndarray) -> np.ndarray:
         """(N,) metres from each point to the nearest labelled touch (inf before any)."""
@@ -142,9 +145,9 @@ class TouchAdvice:
     def border(self, points: np.ndarray) -> np.ndarray:
         """(N,) in [0, 1]: 1 where the nearest touches of two labels are equally far, 0
         where the nearest other label is `boundary_m` farther than the nearest touch (or
-        fewer than two labels have been read)."""
+        the term is off, or fewer than two labels have been read)."""
         points = np.asarray(points, np.float64).reshape(-1, 3)
-        if len(self._label_trees) < 2 or self.config.boundary_m is None:
+        if len(self._label_trees) < 2:
             return np.zeros(len(points))
         per_label = np.stack([tree.query(points)[0] for tree in self._label_trees], axis=1)
         two = np.sort(per_label, axis=1)[:, :2]
