@@ -78,6 +78,8 @@ class BatchSampler:
         self.material_power = {"balanced": 0.0, "tempered": config.material_temper_power}.get(
             config.material_sampling, 1.0
         )
+        self.recent_share = float(config.material_recent_share)
+        self.recent_frames = config.material_recent_frames
         self._grouped: tuple | None = None  # (labels, label_groups(labels)) of the last step
         self.space_prior_points = config.space_prior_points
         self.space_prior_margin = float(config.space_prior_margin)
@@ -93,18 +95,7 @@ class BatchSampler:
         rays = [(camera.samples, self.camera_weight)] if camera else []
         rays += [(tactile, self.tactile_weight)] if tactile else []
         touch = self.memory.touches.tensors()
-        if self.material_sampling != "uniform":
-            pick = balanced_indices(
-                self._groups(touch["labelled_labels"]),
-                self.material_points,
-                self.generator,
-                self.device,
-                self.material_power,
-            )
-        else:
-            pick = random_indices(
-                len(touch["labelled_points"]), self.material_points, self.generator, self.device
-            )
+        pick = self._material_pick(touch)
         x_mat = touch["labelled_points"][pick]
         # Space-prior points (cube samples with a target sign), none until the hull exists.
         x_space, sign_space, floor_space = x_mat[:0], x_mat[:0, 0], x_mat[:0, 0]
@@ -126,6 +117,26 @@ class BatchSampler:
             material_labels=touch["labelled_labels"][pick],
             material_weights=touch["labelled_weights"][pick],
         )
+
+    def _material_pick(self, touch: dict[str, torch.Tensor]) -> torch.Tensor:
+        """This step's labelled touch points for the material loss: `recent_share` of them
+        from the newest `recent_frames` frames' touches, the rest by `material_sampling`."""
+        g, device, recent = self.generator, self.device, self._recent_points(touch)
+        n_recent = round(self.recent_share * self.material_points) if len(recent) else 0
+        n_rest = self.material_points - n_recent
+        if self.material_sampling != "uniform":
+            groups = self._groups(touch["labelled_labels"])
+            rest = balanced_indices(groups, n_rest, g, device, self.material_power)
+        else:
+            rest = random_indices(len(touch["labelled_points"]), n_rest, g, device)
+        return torch.cat([recent[random_indices(len(recent), n_recent, g, device)], rest])
+
+    def _recent_points(self, touch: dict[str, torch.Tensor]) -> torch.Tensor:
+        """Indices of the labelled points whose touches came in the newest frames."""
+        if self.recent_share == 0.0:
+            return torch.zeros(0, dtype=torch.long, device=self.device)
+        oldest = self.memory.touches.newest_frame - self.recent_frames
+        return torch.nonzero(touch["labelled_frames"] > oldest).flatten().to(self.device)
 
     def _groups(self, labels: torch.Tensor) -> tuple[torch.Tensor, torch.Tensor, torch.Tensor]:
         """label_groups of the touches' labels, kept while the touch memory's tensors are."""

@@ -75,6 +75,11 @@ class MapperConfig:
     # sensor.tactile.ignored_faces=generic; docs/field_and_mapper.md#steps-per-frame).
     material_sampling: str = "tempered"
     material_temper_power: float = 0.5
+    # This share of the material draws goes to the labelled touches of the newest
+    # material_recent_frames frames (uniform among their points), the rest as above: a new
+    # touch is otherwise one of hundreds and the map takes seconds to show it. 0: off.
+    material_recent_share: float = 0.0
+    material_recent_frames: int = 10
     truncation: float = 0.005  # metres
     camera_free_range: float = 0.05  # metres in front of the surface
     tactile_free_range: float = 0.01
@@ -156,6 +161,10 @@ class MapperConfig:
             raise ValueError(
                 f"mapping.mapper.material_sampling={self.material_sampling!r}: use one of "
                 f"{', '.join(MATERIAL_SAMPLINGS)}"
+            )
+        if not 0.0 <= self.material_recent_share <= 1.0:
+            raise ValueError(
+                f"mapping.mapper.material_recent_share={self.material_recent_share} must be in [0, 1]"
             )
         if not 0.0 <= self.material_temper_power <= 1.0:
             raise ValueError(

@@ -18,6 +18,7 @@ def check_counts(config: MapperConfig) -> None:
         "space_prior_resolution": 8, "space_prior_hull_every": 1, "window_recent": 1,
         "window_by_loss": 0, "max_keyframes": 1, "label_vote_min_neighbours": 1,
         "label_vote_min_support": 0, "label_vote_press_gap": 0, "label_vote_steady_frames": 0,
+        "material_recent_frames": 1,
     }  # fmt: skip
     for name, low in at_least.items():
         if getattr(config, name) < low:

@@ -87,6 +87,11 @@ class TouchBuffer:
             self._cat = None  # an earlier frame: the ranks of later touches move
         self._mapped.insert(i, int(frame_index))
 
+    @property
+    def newest_frame(self) -> int:
+        """The newest frame the buffer was offered (-1: none yet)."""
+        return self._mapped[-1] if self._mapped else -1
+
     def _press_frames(self, touches: list[int]) -> list[int]:
         """The touches' frames as ranks among the mapped frames (frame indices offline,
         where every frame is mapped; consecutive at realtime pacing, where frames skip)."""
@@ -176,16 +181,19 @@ class TouchBuffer:
         self._cat = None
 
     def tensors(self) -> dict[str, torch.Tensor]:
-        """All touches concatenated: points, axes, labels, weights, and the labelled subset."""
+        """All touches concatenated: points, axes, labels, weights, and the labelled subset
+        (with each labelled point's frame index)."""
         if self._cat is None:
             cat = dict(self._joined_lists())
             labelled = cat["labels"] >= 0
+            frames = torch.tensor(self._frames, dtype=torch.long, device=labelled.device)
             self._num_outvoted = 0
             if self.vote is not None and self.vote.active and self.num_labelled > 0:
                 labelled = labelled & ~self._outvoted_points()
             cat["labelled_points"] = cat["points"][labelled]
             cat["labelled_labels"] = cat["labels"][labelled]
             cat["labelled_weights"] = cat["weights"][labelled]
+            cat["labelled_frames"] = frames[self._touch_of_point(labelled.device)][labelled]
             self._cat = cat
         return self._cat
 

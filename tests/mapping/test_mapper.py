@@ -241,6 +241,27 @@ def test_material_split_from_sparse_touches(
     assert agreement >= least, agreement
 
 
+@pytest.mark.parametrize("share", [0.0, 0.25, 1.0])
+def test_recent_share_draws_that_share_from_the_newest_frames_touches(share: float) -> None:
+    mapper = make_mapper(
+        steps_per_frame=1, warmup_steps=1, label_vote_radius=0.0,
+        material_recent_share=share, material_recent_frames=2,
+    )  # fmt: skip
+    for frame, labels in sphere_frames(6, touches_per_frame=2, camera=False):
+        mapper.add_frame(frame, labels)
+    touch = mapper.memory.touches.tensors()
+    newest = mapper.memory.touches.newest_frame
+    assert newest == int(touch["labelled_frames"].max())
+    from_recent = torch.zeros(0, dtype=torch.long)
+    for _ in range(20):  # draws are random; the split is exact on every step
+        pick = mapper.sampler._material_pick(touch)
+        assert len(pick) == 256
+        from_recent = torch.cat([from_recent, touch["labelled_frames"][pick] > newest - 2])
+    assert int(from_recent.sum()) >= round(share * 256) * 20
+    if share == 1.0:
+        assert bool(from_recent.all())
+
+
 def test_eikonal_term_trains_through_the_sparse_hash_grid() -> None:
     # Exact point count: no space prior, no vote (as in test_counts_losses_and_warmup).
     mapper = make_mapper(
@@ -263,6 +284,8 @@ def test_eikonal_term_trains_through_the_sparse_hash_grid() -> None:
         {"steps_policy": "adaptive"},
         {"material_sampling": "stratified"},
         {"material_temper_power": 1.5},
+        {"material_recent_share": -0.1},
+        {"material_recent_frames": 0},
     ],
 )
 def test_bad_settings_are_refused_by_the_config(bad: dict) -> None:
